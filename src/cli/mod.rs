@@ -1,0 +1,87 @@
+//! The command line: argument definitions (clap) and the dispatch to the library. Each command
+//! lives in its own file; this one only parses, runs and maps errors to exit codes.
+
+mod inspect;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::{Error, progress};
+
+/// otoatlas: register a validated middle-ear mechanical atlas onto a patient's cone-beam CT
+/// and export a ready-to-simulate finite-element model.
+#[derive(Debug, Parser)]
+#[command(name = "otoatlas", version, about, long_about = None)]
+#[command(after_help = "Exit codes: 0 ok, 1 a case failed, 2 bad usage, configuration or input.")]
+pub struct Cli {
+    /// Pipeline configuration (TOML); default: the embedded pipeline.toml.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// No progress bars or log lines on stderr.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    Inspect(inspect::InspectArgs),
+}
+
+/// What a command hands back: text for a person, JSON for a script.
+pub struct Report {
+    pub text: String,
+    pub json: serde_json::Value,
+}
+
+/// Entry point of the `otoatlas` binary.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    progress::set_quiet(cli.quiet);
+    let json = match &cli.command {
+        Command::Inspect(a) => a.json,
+    };
+    let result = match &cli.command {
+        Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
+    };
+    match result {
+        Ok(report) => {
+            if json {
+                let body = serde_json::to_string_pretty(&report.json).unwrap_or_default();
+                print_stdout(&format!("{body}\n"));
+            } else {
+                print_stdout(&report.text);
+            }
+            ExitCode::SUCCESS
+        }
+        Err(err) => fail(&err, json),
+    }
+}
+
+fn fail(err: &Error, json: bool) -> ExitCode {
+    let code = err.exit_status() as u8;
+    if json {
+        let body = serde_json::json!({ "error": err.to_string(), "exit_code": code });
+        let body = serde_json::to_string_pretty(&body).unwrap_or_default();
+        print_stdout(&format!("{body}\n"));
+    }
+    eprintln!("error: {err}");
+    ExitCode::from(code)
+}
+
+/// Writes to stdout, ignoring a closed pipe (`otoatlas inspect x | head` must not panic).
+fn print_stdout(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let _ = out.write_all(text.as_bytes()).and_then(|_| out.flush());
+}

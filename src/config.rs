@@ -1,0 +1,138 @@
+//! The pipeline configuration (`pipeline.toml`): every knob of every stage, with its unit.
+//!
+//! The repository's `pipeline.toml` is embedded in the binary and is the default; a user file
+//! given with `--config` replaces it whole. Unknown keys are errors naming the key and the file.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// The default configuration, exactly as shipped in the repository's `pipeline.toml`.
+pub const DEFAULT_TOML: &str = include_str!("../pipeline.toml");
+
+/// Errors reading or checking a configuration file.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: cannot read the configuration: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: `{field}` is {value}, expected {expected}")]
+    Invalid {
+        path: PathBuf,
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+}
+
+/// The whole pipeline configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub ingest: IngestConfig,
+}
+
+/// Knobs of the ingest stage (reading DICOM series and NIfTI volumes).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IngestConfig {
+    /// Largest single input file accepted, in MiB (guards against malformed length fields).
+    pub max_file_mib: f64,
+    /// Largest relative deviation of one slice gap from the median gap before the series is
+    /// called non-uniform (a missing or extra slice), as a fraction of the median gap.
+    pub slice_gap_tolerance: f64,
+    /// Largest difference between two slices' ImageOrientationPatient direction cosines before
+    /// the series is called mixed-orientation (unitless).
+    pub orientation_tolerance: f64,
+}
+
+impl Config {
+    /// The embedded default configuration.
+    pub fn default_config() -> Result<Config, ConfigError> {
+        Config::from_toml_str(DEFAULT_TOML, Path::new("<embedded pipeline.toml>"))
+    }
+
+    /// Loads `path`, or the embedded default when `path` is `None`.
+    pub fn load(path: Option<&Path>) -> Result<Config, ConfigError> {
+        match path {
+            None => Config::default_config(),
+            Some(p) => {
+                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                    path: p.to_path_buf(),
+                    source,
+                })?;
+                Config::from_toml_str(&text, p)
+            }
+        }
+    }
+
+    /// Parses and checks a configuration; `path` is only used in messages.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Config, ConfigError> {
+        let config: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().replace('\n', " "),
+        })?;
+        config.check(path)?;
+        Ok(config)
+    }
+
+    fn check(&self, path: &Path) -> Result<(), ConfigError> {
+        let positive = |field: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::Invalid {
+                    path: path.to_path_buf(),
+                    field,
+                    value: v.to_string(),
+                    expected: "a finite number > 0",
+                })
+            }
+        };
+        positive("ingest.max_file_mib", self.ingest.max_file_mib)?;
+        positive(
+            "ingest.slice_gap_tolerance",
+            self.ingest.slice_gap_tolerance,
+        )?;
+        positive(
+            "ingest.orientation_tolerance",
+            self.ingest.orientation_tolerance,
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_default_parses() {
+        let c = Config::default_config().unwrap();
+        assert!(c.ingest.max_file_mib >= 1024.0);
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_the_file() {
+        let text = DEFAULT_TOML.replace("[ingest]", "[ingest]\nbogus_knob = 3");
+        let err = Config::from_toml_str(&text, Path::new("my.toml")).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("my.toml"), "{msg}");
+        assert!(msg.contains("bogus_knob"), "{msg}");
+    }
+
+    #[test]
+    fn non_positive_knob_is_rejected_by_name() {
+        let text = DEFAULT_TOML.replace("slice_gap_tolerance = 0.2", "slice_gap_tolerance = -1");
+        let err = Config::from_toml_str(&text, Path::new("p.toml")).unwrap_err();
+        assert!(
+            err.to_string().contains("ingest.slice_gap_tolerance"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,40 @@
+//! The crate-level error: every module's error folds into it, and each maps to an exit code
+//! (0 ok, 1 a case failed, 2 bad usage, configuration or input).
+
+use std::path::PathBuf;
+
+/// Exit status of the command line, as documented in the README.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExitStatus {
+    /// A case (or one case of a cohort) failed while processing valid input.
+    CaseFailed = 1,
+    /// Bad usage, configuration or input data.
+    BadInput = 2,
+}
+
+/// Any error the library reports to the command line.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Image(#[from] crate::image::ImageError),
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Usage(String),
+}
+
+impl Error {
+    /// The exit status this error maps to.
+    pub fn exit_status(&self) -> ExitStatus {
+        match self {
+            Error::Image(_) | Error::Config(_) | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Io { .. } => ExitStatus::CaseFailed,
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! Reading a DICOM CT series (a folder searched recursively, or one multi-frame file) into a
+//! [`Volume`] in LPS millimetres and Hounsfield units.
+
+mod geometry;
+mod pixels;
+mod scan;
+mod tags;
+pub mod write;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::config::IngestConfig;
+use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
+use crate::io_util::sha256_hex;
+use crate::progress::{self, Progress};
+pub use scan::{ImageFile, Rescale};
+
+/// Human name of a transfer syntax UID, from the registry dicom-rs was built with.
+pub fn transfer_syntax_name(uid: &str) -> String {
+    use dicom_encoding::TransferSyntaxIndex;
+    dicom_transfer_syntax_registry::TransferSyntaxRegistry
+        .get(uid)
+        .map(|ts| ts.name().to_string())
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// Reads the image series at `path` (a folder or a single file). With several image series in
+/// a folder, `series` picks one by SeriesInstanceUID or by a prefix of its SHA-256.
+pub fn read_dicom(
+    path: &Path,
+    series: Option<&str>,
+    cfg: &IngestConfig,
+) -> Result<LoadedImage, ImageError> {
+    let files = if path.is_dir() {
+        scan::list_files(path)?
+    } else {
+        if !scan::has_dicom_marker(path)? {
+            return Err(ImageError::NotDicom {
+                path: path.to_path_buf(),
+            });
+        }
+        vec![path.to_path_buf()]
+    };
+    let max_bytes = (cfg.max_file_mib * 1048576.0) as u64;
+    let header_bar = Progress::new("headers", files.len() as u64);
+    let scanned = scan::scan_files(&files, max_bytes)?;
+    header_bar.inc(files.len() as u64);
+    let mut notes = Vec::new();
+    let mut by_series: BTreeMap<String, Vec<ImageFile>> = BTreeMap::new();
+    for s in scanned {
+        match s {
+            scan::Scanned::Image(f) => by_series.entry(f.series_uid.clone()).or_default().push(*f),
+            scan::Scanned::Skipped { path, reason } => {
+                let note = format!("skipped {}: {reason}", path.display());
+                progress::log(&note);
+                notes.push(note);
+            }
+        }
+    }
+    header_bar.finish(format!(
+        "{} files, {} image series",
+        files.len(),
+        by_series.len()
+    ));
+    let skipped = notes.len();
+    let listing = || series_listing(&by_series);
+    let (uid, files) = match (by_series.len(), series) {
+        (0, _) => {
+            return Err(ImageError::NoImageSeries {
+                path: path.to_path_buf(),
+                skipped,
+            });
+        }
+        (_, Some(wanted)) => {
+            let wanted_lc = wanted.to_ascii_lowercase();
+            let hit = by_series.keys().find(|uid| {
+                uid.as_str() == wanted
+                    || (wanted_lc.len() >= 6 && sha256_hex(uid.as_bytes()).starts_with(&wanted_lc))
+            });
+            match hit.cloned() {
+                Some(uid) => {
+                    let files = by_series.remove(&uid).unwrap_or_default();
+                    (uid, files)
+                }
+                None => {
+                    return Err(ImageError::SeriesNotFound {
+                        path: path.to_path_buf(),
+                        wanted: wanted.to_string(),
+                        listing: listing(),
+                    });
+                }
+            }
+        }
+        (1, None) => by_series.pop_first().unwrap_or_default(),
+        (count, None) => {
+            return Err(ImageError::SeveralSeries {
+                path: path.to_path_buf(),
+                count,
+                listing: listing(),
+            });
+        }
+    };
+    let geometry = geometry::series_geometry(&files, cfg)?;
+    let n_planes = geometry.dims[2] as u64;
+    let mut data = vec![0f32; geometry.dims.iter().product()];
+    let bar = Progress::new("decode", n_planes);
+    pixels::decode_series(&files, &geometry.order, &mut data, &|| bar.inc(1))?;
+    bar.finish(format!(
+        "{} x {} x {} voxels",
+        geometry.dims[0], geometry.dims[1], geometry.dims[2]
+    ));
+    for w in &geometry.warnings {
+        progress::log(format!("warning: {w}"));
+    }
+    let first = &files[0];
+    let mut syntaxes: Vec<&str> = files.iter().map(|f| f.transfer_syntax.as_str()).collect();
+    syntaxes.sort_unstable();
+    syntaxes.dedup();
+    let laterality = files.iter().find_map(|f| f.laterality.clone());
+    let volume = Volume {
+        dims: geometry.dims,
+        spacing: geometry.spacing,
+        origin: geometry.origin,
+        direction: geometry.direction,
+        data,
+    };
+    Ok(LoadedImage {
+        volume,
+        info: ImageInfo {
+            format: "dicom".into(),
+            modality: first.modality.clone(),
+            transfer_syntax: syntaxes.join(", "),
+            transfer_syntax_name: syntaxes
+                .iter()
+                .map(|s| transfer_syntax_name(s))
+                .collect::<Vec<_>>()
+                .join(", "),
+            slices: geometry.order.len(),
+            files: files.len(),
+            series_uid_sha256: Some(sha256_hex(uid.as_bytes())),
+            laterality,
+            warnings: geometry.warnings,
+            notes,
+        },
+    })
+}
+
+fn series_listing(by_series: &BTreeMap<String, Vec<ImageFile>>) -> String {
+    by_series
+        .iter()
+        .map(|(uid, files)| {
+            let frames: usize = files.iter().map(|f| f.frames.len()).sum();
+            let f = &files[0];
+            format!(
+                "  {}  {:<3} {:>4} slices  {}x{}x{}  {:?}",
+                &sha256_hex(uid.as_bytes())[..16],
+                f.modality,
+                frames,
+                f.columns,
+                f.rows,
+                frames,
+                f.description
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}

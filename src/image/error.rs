@@ -1,0 +1,119 @@
+//! Errors of image ingest: each names the file, the DICOM tag or NIfTI field, and what was
+//! expected, so a user can fix the input without a debugger.
+
+use std::path::PathBuf;
+
+/// An input image could not be read as a volume.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("{path}: no such file or folder")]
+    NotFound { path: PathBuf },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "{path}: not a DICOM file (no 'DICM' marker at byte 128) and not a NIfTI file (.nii, .nii.gz)"
+    )]
+    NotDicom { path: PathBuf },
+    #[error("{path}: cannot parse the DICOM file ({message}); is it truncated or corrupt?")]
+    DicomParse { path: PathBuf, message: String },
+    #[error(
+        "{path}: file is {size_mib:.0} MiB, above the limit of {max_mib:.0} MiB (ingest.max_file_mib)"
+    )]
+    TooLarge {
+        path: PathBuf,
+        size_mib: f64,
+        max_mib: f64,
+    },
+    #[error("{path}: no DICOM image series found{}", skipped_note(.skipped))]
+    NoImageSeries { path: PathBuf, skipped: usize },
+    #[error(
+        "{path}: the folder holds {count} image series; choose one with --series (a UID or a hash prefix):\n{listing}"
+    )]
+    SeveralSeries {
+        path: PathBuf,
+        count: usize,
+        listing: String,
+    },
+    #[error("{path}: no image series matches --series {wanted:?}; the series are:\n{listing}")]
+    SeriesNotFound {
+        path: PathBuf,
+        wanted: String,
+        listing: String,
+    },
+    #[error("{path}: missing {tag}; expected {expected}")]
+    MissingTag {
+        path: PathBuf,
+        tag: &'static str,
+        expected: &'static str,
+    },
+    #[error("{path}: {tag} is {value}; expected {expected}")]
+    BadValue {
+        path: PathBuf,
+        tag: &'static str,
+        value: String,
+        expected: String,
+    },
+    #[error("mixed image sizes in one series: {first} is {first_dims}, {other} is {other_dims}")]
+    MixedDims {
+        first: PathBuf,
+        first_dims: String,
+        other: PathBuf,
+        other_dims: String,
+    },
+    #[error(
+        "mixed orientations in one series: ImageOrientationPatient of {first} is {first_iop}, of {other} is {other_iop}"
+    )]
+    MixedOrientation {
+        first: PathBuf,
+        first_iop: String,
+        other: PathBuf,
+        other_iop: String,
+    },
+    #[error(
+        "two slices at the same position {position_mm:.3} mm along the slice normal: {first} and {other} (duplicate slice?)"
+    )]
+    DuplicatePosition {
+        first: PathBuf,
+        other: PathBuf,
+        position_mm: f64,
+    },
+    #[error(
+        "slice spacing is not uniform: a gap of {gap_mm:.3} mm between {before} (at {at_mm:.3} mm along the slice normal) and {after}, where the median gap is {median_mm:.3} mm ({hint})"
+    )]
+    NonUniformSpacing {
+        before: PathBuf,
+        after: PathBuf,
+        at_mm: f64,
+        gap_mm: f64,
+        median_mm: f64,
+        hint: &'static str,
+    },
+    #[error(
+        "{path}: slice position is {offset_mm:.3} mm off the line through the other slices (ImagePositionPatient); the slices do not stack into one volume"
+    )]
+    NotStacked { path: PathBuf, offset_mm: f64 },
+    #[error("{path}: cannot decode the pixel data ({message})")]
+    Decode { path: PathBuf, message: String },
+    #[error("{path}: {what} is not supported")]
+    Unsupported { path: PathBuf, what: String },
+    #[error("{path}: NIfTI field {field} is {value}; expected {expected}")]
+    NiftiField {
+        path: PathBuf,
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("{path}: cannot read the NIfTI file ({message})")]
+    Nifti { path: PathBuf, message: String },
+}
+
+fn skipped_note(skipped: &usize) -> String {
+    match skipped {
+        0 => String::new(),
+        n => format!(" ({n} non-image or non-DICOM files skipped)"),
+    }
+}

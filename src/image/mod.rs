@@ -1,0 +1,63 @@
+//! Images: the [`Volume`] type and the readers that make one from a DICOM series or a NIfTI
+//! file, in LPS millimetres and Hounsfield units.
+
+pub mod dicom;
+mod error;
+pub mod nifti;
+mod volume;
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::config::IngestConfig;
+pub use error::ImageError;
+pub use volume::Volume;
+
+/// What ingest learned about the input besides the voxels (never a patient field or raw UID).
+#[derive(Debug, Clone, Serialize)]
+pub struct ImageInfo {
+    /// "dicom", "nifti1" or "nifti2".
+    pub format: String,
+    pub modality: String,
+    /// Transfer syntax UID(s) of the series (comma-separated if mixed).
+    pub transfer_syntax: String,
+    pub transfer_syntax_name: String,
+    /// Number of slices (frames) stacked along k.
+    pub slices: usize,
+    /// Number of files the volume was read from.
+    pub files: usize,
+    /// SHA-256 of the SeriesInstanceUID (DICOM only).
+    pub series_uid_sha256: Option<String>,
+    /// Laterality as written in the DICOM (R or L), if any.
+    pub laterality: Option<String>,
+    /// Assumptions made where the data did not say.
+    pub warnings: Vec<String>,
+    /// Files skipped while scanning (non-image objects, non-DICOM files).
+    pub notes: Vec<String>,
+}
+
+/// A volume together with what ingest learned about its source.
+#[derive(Debug, Clone)]
+pub struct LoadedImage {
+    pub volume: Volume,
+    pub info: ImageInfo,
+}
+
+/// Reads `path`: a NIfTI file (`.nii`, `.nii.gz`), a DICOM file (single- or multi-frame), or a
+/// folder searched recursively for a DICOM series (`series` chooses among several).
+pub fn load(
+    path: &Path,
+    series: Option<&str>,
+    cfg: &IngestConfig,
+) -> Result<LoadedImage, ImageError> {
+    if !path.exists() {
+        return Err(ImageError::NotFound {
+            path: path.to_path_buf(),
+        });
+    }
+    if path.is_file() && nifti::is_nifti_path(path) {
+        return nifti::read_nifti(path, (cfg.max_file_mib * 1048576.0) as u64);
+    }
+    dicom::read_dicom(path, series, cfg)
+}

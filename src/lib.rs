@@ -1,0 +1,15 @@
+//! otoatlas: registers a validated mechanical atlas of the middle ear onto a patient's
+//! cone-beam CT and exports a ready-to-simulate finite-element package.
+//!
+//! World space everywhere is DICOM patient space (LPS) in millimetres; see `DESIGN.md` in the
+//! project's shared notes and the README for the conventions each module keeps.
+
+pub mod cli;
+pub mod config;
+pub mod error;
+pub mod image;
+pub mod io_util;
+pub mod mesh;
+pub mod progress;
+
+pub use error::{Error, ExitStatus};

@@ -1,0 +1,102 @@
+//! `TriMesh`: an indexed triangle surface in world coordinates (LPS mm), counter-clockwise
+//! triangles seen from outside (outward normals by the right-hand rule).
+
+use nalgebra::{Point3, Vector3};
+
+/// An indexed triangle surface.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    pub vertices: Vec<Point3<f64>>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// The three corners of triangle `t`.
+    #[inline]
+    pub fn corners(&self, t: usize) -> [Point3<f64>; 3] {
+        let [a, b, c] = self.triangles[t];
+        [
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        ]
+    }
+
+    /// Twice the area times the unit normal of triangle `t` (right-hand rule).
+    #[inline]
+    pub fn area_normal2(&self, t: usize) -> Vector3<f64> {
+        let [a, b, c] = self.corners(t);
+        (b - a).cross(&(c - a))
+    }
+
+    /// Area of triangle `t`.
+    pub fn triangle_area(&self, t: usize) -> f64 {
+        0.5 * self.area_normal2(t).norm()
+    }
+
+    /// Total surface area.
+    pub fn area(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| self.triangle_area(t))
+            .sum()
+    }
+
+    /// Signed enclosed volume (positive for a closed, outward-oriented surface).
+    pub fn signed_volume(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let [a, b, c] = self.corners(t);
+                a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Barycentre of triangle `t`.
+    pub fn triangle_centroid(&self, t: usize) -> Point3<f64> {
+        let [a, b, c] = self.corners(t);
+        Point3::from((a.coords + b.coords + c.coords) / 3.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube with outward triangles.
+    fn cube() -> TriMesh {
+        let v = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
+        TriMesh {
+            vertices: vec![
+                v(0., 0., 0.),
+                v(1., 0., 0.),
+                v(1., 1., 0.),
+                v(0., 1., 0.),
+                v(0., 0., 1.),
+                v(1., 0., 1.),
+                v(1., 1., 1.),
+                v(0., 1., 1.),
+            ],
+            triangles: vec![
+                [0, 2, 1],
+                [0, 3, 2],
+                [4, 5, 6],
+                [4, 6, 7],
+                [0, 1, 5],
+                [0, 5, 4],
+                [1, 2, 6],
+                [1, 6, 5],
+                [2, 3, 7],
+                [2, 7, 6],
+                [3, 0, 4],
+                [3, 4, 7],
+            ],
+        }
+    }
+
+    #[test]
+    fn cube_area_and_volume() {
+        let c = cube();
+        assert!((c.area() - 6.0).abs() < 1e-12);
+        assert!((c.signed_volume() - 1.0).abs() < 1e-12);
+    }
+}
