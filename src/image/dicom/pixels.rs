@@ -10,7 +10,9 @@ use dicom_pixeldata::{ConvertOptions, ModalityLutOption, PixelDecoder};
 use rayon::prelude::*;
 
 use super::scan::{ImageFile, Rescale};
+use super::tags as attr;
 use crate::image::ImageError;
+use dicom_object::InMemDicomObject;
 
 fn decode_err(path: &Path) -> impl Fn(String) -> ImageError + '_ {
     move |message| ImageError::Decode {
@@ -60,6 +62,26 @@ fn decode_file(
             expected: "the image's pixel data (is the file truncated?)",
         });
     }
+    let stored_to_hu = StoredToHu::new(&obj, file)?;
+    if let Some(bytes) = native_16bit_pixels(&obj, file)? {
+        let plane = file.rows * file.columns;
+        for (frame, out) in jobs {
+            let start = frame * plane * 2;
+            let Some(frame_bytes) = bytes.get(start..start + plane * 2) else {
+                return Err(err(format!(
+                    "PixelData holds {} bytes, frame {frame} needs bytes {start}..{}",
+                    bytes.len(),
+                    start + plane * 2
+                )));
+            };
+            let rescale = file.frames[frame].rescale;
+            for (o, c) in out.iter_mut().zip(frame_bytes.chunks_exact(2)) {
+                *o = stored_to_hu.convert(u16::from_le_bytes([c[0], c[1]]), rescale);
+            }
+            on_plane();
+        }
+        return Ok(());
+    }
     let decoded = obj.decode_pixel_data().map_err(|e| err(e.to_string()))?;
     if decoded.rows() as usize != file.rows || decoded.columns() as usize != file.columns {
         return Err(err(format!(
@@ -72,12 +94,6 @@ fn decode_file(
     }
     let frames = decoded.number_of_frames() as usize;
     let raw_options = ConvertOptions::new().with_modality_lut(ModalityLutOption::None);
-    let bits_stored = decoded.bits_stored().clamp(1, 32) as u32;
-    let signed = matches!(
-        decoded.pixel_representation(),
-        dicom_pixeldata::PixelRepresentation::Signed
-    );
-    let monochrome1 = file.photometric == "MONOCHROME1";
     for (frame, out) in jobs {
         if frame >= frames {
             return Err(err(format!(
@@ -94,21 +110,106 @@ fn decode_file(
                 out.len()
             )));
         }
-        let Rescale { slope, intercept } = file.frames[frame].rescale;
-        // MONOCHROME1: the minimum stored value is white; invert within the stored range
-        let (lo, hi) = if signed {
-            (
-                -(1i64 << (bits_stored - 1)),
-                (1i64 << (bits_stored - 1)) - 1,
-            )
-        } else {
-            (0, (1i64 << bits_stored) - 1)
-        };
+        let rescale = file.frames[frame].rescale;
         for (o, &v) in out.iter_mut().zip(&raw) {
-            let stored = if monochrome1 { lo + hi - v } else { v };
-            *o = (stored as f64 * slope + intercept) as f32;
+            *o = stored_to_hu.rescale(v, rescale);
         }
         on_plane();
     }
     Ok(())
+}
+
+/// Stored pixel value to HU: BitsStored masking and sign extension, MONOCHROME1 inversion
+/// within the stored range (so that larger always means denser), then the frame's rescale.
+struct StoredToHu {
+    bits_stored: u32,
+    signed: bool,
+    monochrome1: bool,
+}
+
+impl StoredToHu {
+    fn new(obj: &InMemDicomObject, file: &ImageFile) -> Result<StoredToHu, ImageError> {
+        let path = file.path.as_path();
+        let bits_stored =
+            attr::int(obj, tags::BITS_STORED, "BitsStored (0028,0101)", path)?.unwrap_or(16);
+        if !(1..=32).contains(&bits_stored) {
+            return Err(ImageError::BadValue {
+                path: path.to_path_buf(),
+                tag: "BitsStored (0028,0101)",
+                value: bits_stored.to_string(),
+                expected: "1 to 32".into(),
+            });
+        }
+        let representation = attr::int(
+            obj,
+            tags::PIXEL_REPRESENTATION,
+            "PixelRepresentation (0028,0103)",
+            path,
+        )?;
+        Ok(StoredToHu {
+            bits_stored: bits_stored as u32,
+            signed: representation == Some(1),
+            monochrome1: file.photometric == "MONOCHROME1",
+        })
+    }
+
+    /// A raw 16-bit container value to HU.
+    #[inline]
+    fn convert(&self, container: u16, r: Rescale) -> f32 {
+        let bits = self.bits_stored.min(16);
+        let v = if self.signed {
+            let shift = 16 - bits;
+            (((container << shift) as i16) >> shift) as i64
+        } else {
+            (container & (((1u32 << bits) - 1) as u16)) as i64
+        };
+        self.rescale(v, r)
+    }
+
+    /// A stored value (already sign-extended) to HU.
+    #[inline]
+    fn rescale(&self, v: i64, r: Rescale) -> f32 {
+        let stored = if self.monochrome1 {
+            let (lo, hi) = if self.signed {
+                (
+                    -(1i64 << (self.bits_stored - 1)),
+                    (1i64 << (self.bits_stored - 1)) - 1,
+                )
+            } else {
+                (0, (1i64 << self.bits_stored) - 1)
+            };
+            lo + hi - v
+        } else {
+            v
+        };
+        (stored as f64 * r.slope + r.intercept) as f32
+    }
+}
+
+/// The raw PixelData bytes when they are native (not encapsulated) little-endian 16-bit
+/// samples: the common CT case, converted without an intermediate decode.
+fn native_16bit_pixels<'a>(
+    obj: &'a InMemDicomObject,
+    file: &ImageFile,
+) -> Result<Option<std::borrow::Cow<'a, [u8]>>, ImageError> {
+    const NATIVE_LE: [&str; 2] = ["1.2.840.10008.1.2", "1.2.840.10008.1.2.1"];
+    if !NATIVE_LE.contains(&file.transfer_syntax.as_str()) {
+        return Ok(None);
+    }
+    let allocated = attr::int(
+        obj,
+        tags::BITS_ALLOCATED,
+        "BitsAllocated (0028,0100)",
+        &file.path,
+    )?;
+    if allocated != Some(16) {
+        return Ok(None);
+    }
+    let Some(elem) = obj.get(tags::PIXEL_DATA) else {
+        return Ok(None);
+    };
+    match elem.value() {
+        dicom_core::DicomValue::Primitive(_) => Ok(elem.to_bytes().ok()),
+        _ => Ok(None),
+    }
 }

@@ -1,0 +1,62 @@
+//! Helpers shared by the integration tests: locating fetched test corpora, skipping cleanly
+//! when an optional input is absent, and running the `otoatlas` binary.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The crate root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The folder `scripts/fetch-testdata.sh` fills (pydicom, pydicom-data and nibabel wheels).
+/// Returns `None` (and says so) when absent, unless `OTOATLAS_REQUIRE_TESTDATA=1`, which
+/// turns absence into a failure (CI sets it).
+pub fn testdata(rel: &str) -> Option<PathBuf> {
+    let p = root().join(".testdata").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") {
+        panic!("{} is missing: run scripts/fetch-testdata.sh", p.display());
+    }
+    eprintln!(
+        "skipped: {} absent (run scripts/fetch-testdata.sh)",
+        p.display()
+    );
+    None
+}
+
+/// Runs the otoatlas binary with `args`.
+pub fn otoatlas(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(args)
+        .output()
+        .expect("run otoatlas")
+}
+
+/// Runs `otoatlas ARGS --json` and parses stdout.
+pub fn otoatlas_json(args: &[&str]) -> (i32, serde_json::Value) {
+    let mut all: Vec<&str> = args.to_vec();
+    all.push("--json");
+    all.push("--quiet");
+    let out = otoatlas(&all);
+    let code = out.status.code().unwrap_or(-1);
+    let v = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}): {}\nstderr: {}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    (code, v)
+}
+
+/// Asserts two float slices agree within `tol`.
+pub fn assert_close(actual: &[f64], expected: &[f64], tol: f64, what: &str) {
+    assert_eq!(actual.len(), expected.len(), "{what}: length");
+    for (a, e) in actual.iter().zip(expected) {
+        assert!((a - e).abs() <= tol, "{what}: {actual:?} vs {expected:?}");
+    }
+}

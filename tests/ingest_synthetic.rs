@@ -1,0 +1,351 @@
+//! Ingest of DICOM series written by the tests themselves (with dicom-rs): geometry read back
+//! exactly for shuffled, oblique, tilted and per-slice-rescaled series; and the bad-input
+//! matrix, each case a clear error with exit code 2 and never a panic.
+
+mod common;
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use common::{assert_close, otoatlas, otoatlas_json};
+use dicom_core::{DataElement, PrimitiveValue, VR};
+use dicom_dictionary_std::tags;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use otoatlas::config::Config;
+use otoatlas::image::dicom::Rescale;
+use otoatlas::image::dicom::write::{SeriesIdentity, SliceRescale, uid_from, write_series};
+use otoatlas::image::{self, ImageError, Volume};
+
+fn identity(seed: &str) -> SeriesIdentity {
+    SeriesIdentity {
+        study_uid: uid_from(&format!("{seed}/study")),
+        series_uid: uid_from(&format!("{seed}/series")),
+        frame_of_reference_uid: uid_from(&format!("{seed}/for")),
+        patient_name: "DOE^JANE".into(),
+        patient_id: "PHANTOM-0001".into(),
+        patient_birth_date: "19700101".into(),
+        series_description: format!("test {seed}"),
+        laterality: Some("R".into()),
+    }
+}
+
+/// A volume whose value encodes its voxel index: v = i + 10 j + 100 k - 1000 (integers).
+fn pattern(dims: [usize; 3], spacing: [f64; 3], direction: Matrix3<f64>) -> Volume {
+    let mut data = Vec::new();
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                data.push((i + 10 * j + 100 * k) as f32 - 1000.0);
+            }
+        }
+    }
+    Volume {
+        dims,
+        spacing,
+        origin: Vector3::new(-12.5, 30.25, 101.0),
+        direction,
+        data,
+    }
+}
+
+const FIXED: SliceRescale = SliceRescale::Fixed(Rescale {
+    slope: 1.0,
+    intercept: -1024.0,
+});
+
+fn read(path: &Path) -> Result<image::LoadedImage, ImageError> {
+    image::load(path, None, &Config::default_config().unwrap().ingest)
+}
+
+fn assert_same_geometry(a: &Volume, b: &Volume) {
+    assert_eq!(a.dims, b.dims);
+    assert_close(&a.spacing, &b.spacing, 1e-6, "spacing");
+    assert_close(a.origin.as_slice(), b.origin.as_slice(), 1e-5, "origin");
+    assert_close(
+        &a.direction_row_major(),
+        &b.direction_row_major(),
+        1e-6,
+        "direction",
+    );
+}
+
+#[test]
+fn oblique_series_with_shuffled_names_reads_back_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let rot = *Rotation3::from_euler_angles(0.4, -0.3, 1.1).matrix();
+    let vol = pattern([7, 5, 6], [0.25, 0.3, 0.2], rot);
+    let paths = write_series(dir.path(), &vol, &identity("oblique"), &FIXED).unwrap();
+    let mut names: Vec<_> = paths
+        .iter()
+        .map(|p| p.file_name().unwrap().to_owned())
+        .collect();
+    let in_k_order = names.clone();
+    names.sort();
+    assert_ne!(names, in_k_order, "file names must not follow slice order");
+    let back = read(dir.path()).unwrap();
+    assert_same_geometry(&back.volume, &vol);
+    assert_eq!(back.volume.data, vol.data);
+    assert_eq!(back.info.laterality.as_deref(), Some("R"));
+    // the CLI agrees and never prints a patient field or the raw UID
+    let (code, json) = otoatlas_json(&["inspect", dir.path().to_str().unwrap()]);
+    assert_eq!(code, 0);
+    assert_eq!(json["dims"], serde_json::json!([7, 5, 6]));
+    let text = json.to_string();
+    for secret in [
+        "DOE",
+        "PHANTOM-0001",
+        "19700101",
+        &identity("oblique").series_uid,
+    ] {
+        assert!(!text.contains(secret), "{secret} leaked: {text}");
+    }
+    assert_eq!(
+        json["series_uid_sha256"].as_str().unwrap(),
+        otoatlas::io_util::sha256_hex(identity("oblique").series_uid.as_bytes())
+    );
+}
+
+#[test]
+fn gantry_tilt_gives_a_sheared_direction_matrix() {
+    let dir = tempfile::tempdir().unwrap();
+    // slices stacked 15 degrees off their normal (tilt about the x axis)
+    let tilt = 15f64.to_radians();
+    let d = Matrix3::from_columns(&[
+        Vector3::x(),
+        Vector3::y(),
+        Vector3::new(0.0, tilt.sin(), tilt.cos()),
+    ]);
+    let vol = pattern([4, 4, 5], [0.5, 0.5, 0.75], d);
+    write_series(dir.path(), &vol, &identity("tilt"), &FIXED).unwrap();
+    let back = read(dir.path()).unwrap();
+    assert_same_geometry(&back.volume, &vol);
+    assert!(back.info.warnings.iter().any(|w| w.contains("gantry tilt")));
+}
+
+#[test]
+fn per_slice_rescale_is_applied_slice_by_slice() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = pattern([6, 4, 5], [0.2, 0.2, 0.2], Matrix3::identity());
+    let per_slice: Vec<Rescale> = (0..5)
+        .map(|k| Rescale {
+            slope: 0.5 * (1 + k % 3) as f64,
+            intercept: -1024.0 + 13.0 * k as f64,
+        })
+        .collect();
+    write_series(
+        dir.path(),
+        &vol,
+        &identity("rescale"),
+        &SliceRescale::PerSlice(per_slice.clone()),
+    )
+    .unwrap();
+    let back = read(dir.path()).unwrap();
+    for (k, r) in per_slice.iter().enumerate() {
+        let n = 24;
+        for (a, b) in back.volume.data[k * n..(k + 1) * n]
+            .iter()
+            .zip(&vol.data[k * n..(k + 1) * n])
+        {
+            assert!(
+                (a - b).abs() as f64 <= r.slope / 2.0 + 1e-6,
+                "slice {k}: {a} vs {b}"
+            );
+        }
+    }
+}
+
+/// Rewrites one file with `edit` applied to its dataset.
+fn edit_file(path: &Path, edit: impl FnOnce(&mut dicom_object::DefaultDicomObject)) {
+    let mut obj = dicom_object::open_file(path).unwrap();
+    edit(&mut obj);
+    obj.write_to_file(path).unwrap();
+}
+
+#[test]
+fn monochrome1_is_inverted_to_hounsfield() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = pattern([4, 3, 2], [0.3, 0.3, 0.3], Matrix3::identity());
+    let paths = write_series(dir.path(), &vol, &identity("mono1"), &FIXED).unwrap();
+    for p in &paths {
+        edit_file(p, |obj| {
+            obj.put(DataElement::new(
+                tags::PHOTOMETRIC_INTERPRETATION,
+                VR::CS,
+                "MONOCHROME1",
+            ));
+            let bytes = obj
+                .element(tags::PIXEL_DATA)
+                .unwrap()
+                .to_bytes()
+                .unwrap()
+                .into_owned();
+            // MONOCHROME1 stores (lo + hi) - v for signed 16-bit: -1 - v
+            let inverted: Vec<u8> = bytes
+                .chunks(2)
+                .flat_map(|c| (-1 - i16::from_le_bytes([c[0], c[1]])).to_le_bytes())
+                .collect();
+            obj.put(DataElement::new(
+                tags::PIXEL_DATA,
+                VR::OW,
+                PrimitiveValue::U8(inverted.into()),
+            ));
+        });
+    }
+    assert_eq!(read(dir.path()).unwrap().volume.data, vol.data);
+}
+
+fn series_dir(seed: &str) -> (tempfile::TempDir, Vec<PathBuf>) {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = pattern([4, 4, 6], [0.25, 0.25, 0.5], Matrix3::identity());
+    let paths = write_series(dir.path(), &vol, &identity(seed), &FIXED).unwrap();
+    (dir, paths)
+}
+
+/// Runs `inspect` on `path` and checks exit code 2, no panic, and a message containing `needle`.
+fn assert_bad_input(path: &Path, needle: &str) {
+    let out = otoatlas(&["inspect", path.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains(needle), "expected {needle:?} in: {stderr}");
+}
+
+#[test]
+fn removed_slice_is_a_missing_slice_error_naming_the_neighbours() {
+    let (dir, paths) = series_dir("gap");
+    fs::remove_file(&paths[3]).unwrap();
+    let err = read(dir.path()).unwrap_err();
+    assert!(matches!(err, ImageError::NonUniformSpacing { .. }), "{err}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains(&paths[2].file_name().unwrap().to_string_lossy().to_string()),
+        "{msg}"
+    );
+    assert!(
+        msg.contains(&paths[4].file_name().unwrap().to_string_lossy().to_string()),
+        "{msg}"
+    );
+    assert_bad_input(dir.path(), "missing slice");
+}
+
+#[test]
+fn duplicate_position_is_an_error() {
+    let (dir, paths) = series_dir("dup");
+    let copy = dir.path().join("copy.dcm");
+    fs::copy(&paths[2], &copy).unwrap();
+    edit_file(&copy, |obj| {
+        obj.put(DataElement::new(
+            tags::SOP_INSTANCE_UID,
+            VR::UI,
+            uid_from("another"),
+        ));
+    });
+    assert!(matches!(
+        read(dir.path()).unwrap_err(),
+        ImageError::DuplicatePosition { .. }
+    ));
+    assert_bad_input(dir.path(), "same position");
+}
+
+#[test]
+fn mixed_orientation_and_mixed_dims_are_errors() {
+    let (dir, paths) = series_dir("mixed-o");
+    edit_file(&paths[1], |obj| {
+        obj.put(DataElement::new(
+            tags::IMAGE_ORIENTATION_PATIENT,
+            VR::DS,
+            PrimitiveValue::Strs(
+                ["0", "1", "0", "1", "0", "0"]
+                    .map(String::from)
+                    .into_iter()
+                    .collect(),
+            ),
+        ));
+    });
+    assert_bad_input(dir.path(), "mixed orientations");
+
+    let (dir, paths) = series_dir("mixed-d");
+    edit_file(&paths[1], |obj| {
+        obj.put(DataElement::new(
+            tags::COLUMNS,
+            VR::US,
+            PrimitiveValue::from(2u16),
+        ));
+    });
+    assert_bad_input(dir.path(), "mixed image sizes");
+}
+
+#[test]
+fn two_series_in_one_folder_need_a_choice() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = pattern([4, 4, 3], [0.25, 0.25, 0.5], Matrix3::identity());
+    write_series(&dir.path().join("a"), &vol, &identity("first"), &FIXED).unwrap();
+    write_series(&dir.path().join("b"), &vol, &identity("second"), &FIXED).unwrap();
+    assert_bad_input(dir.path(), "2 image series");
+    let uid = identity("second").series_uid;
+    let (code, json) = otoatlas_json(&["inspect", dir.path().to_str().unwrap(), "--series", &uid]);
+    assert_eq!(code, 0);
+    assert_eq!(json["slices"], 3);
+    let prefix = &otoatlas::io_util::sha256_hex(uid.as_bytes())[..10];
+    let (code, json2) =
+        otoatlas_json(&["inspect", dir.path().to_str().unwrap(), "--series", prefix]);
+    assert_eq!(code, 0);
+    assert_eq!(json2["series_uid_sha256"], json["series_uid_sha256"]);
+}
+
+#[test]
+fn truncated_file_is_named() {
+    let (dir, paths) = series_dir("trunc");
+    let bytes = fs::read(&paths[2]).unwrap();
+    // cut inside the pixel data
+    fs::write(&paths[2], &bytes[..bytes.len() - 10]).unwrap();
+    let name = paths[2].file_name().unwrap().to_string_lossy().to_string();
+    assert_bad_input(dir.path(), &name);
+    // cut inside the header
+    fs::write(&paths[2], &bytes[..300]).unwrap();
+    assert_bad_input(dir.path(), &name);
+}
+
+#[test]
+fn non_dicom_and_empty_inputs_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    assert_bad_input(dir.path(), "no DICOM image series found");
+    let txt = dir.path().join("notes.txt");
+    fs::write(&txt, "not an image").unwrap();
+    assert_bad_input(
+        dir.path(),
+        "no DICOM image series found (1 non-image or non-DICOM files skipped)",
+    );
+    assert_bad_input(&txt, "not a DICOM file");
+    assert_bad_input(&dir.path().join("absent"), "no such file or folder");
+    let nii = dir.path().join("broken.nii");
+    fs::write(&nii, vec![0u8; 100]).unwrap();
+    assert_bad_input(&nii, "sizeof_hdr");
+}
+
+#[test]
+fn a_stray_file_beside_a_series_is_skipped_with_a_note() {
+    let (dir, _) = series_dir("stray");
+    fs::write(dir.path().join("README"), "export notes").unwrap();
+    let back = read(dir.path()).unwrap();
+    assert_eq!(back.volume.dims, [4, 4, 6]);
+    assert_eq!(back.info.notes.len(), 1);
+}
+
+#[test]
+fn bad_config_is_exit_code_two_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("bad.toml");
+    fs::write(
+        &cfg,
+        otoatlas::config::DEFAULT_TOML.replace("[ingest]", "[ingest]\nmax_file_gib = 3"),
+    )
+    .unwrap();
+    let out = otoatlas(&["inspect", ".", "--config", cfg.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr.contains("max_file_gib") && stderr.contains("bad.toml"),
+        "{stderr}"
+    );
+}
