@@ -6,6 +6,7 @@ cd "$(dirname "$0")/.."
 source scripts/lib.sh
 ensure_build_deps
 ensure_apt python3 python3
+ensure_apt dcmdjpeg dcmtk
 python3 -m pip --version >/dev/null 2>&1 || ensure_apt pip python3-pip
 python3 -m pip install --quiet --disable-pip-version-check -r scripts/requirements-test.txt
 bash scripts/fetch-testdata.sh

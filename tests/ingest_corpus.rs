@@ -335,3 +335,61 @@ fn nifti_scl_slope_is_applied() {
     };
     assert!((img.volume.data[0] as f64 - 4004.137202501297).abs() < 1e-2);
 }
+
+/// Decompresses `input` with a dcmtk tool (Debian package dcmtk, an independent decoder) into
+/// `output`; `None` when dcmtk is absent and not required.
+fn dcmtk(
+    tool: &str,
+    args: &[&str],
+    input: &std::path::Path,
+    output: &std::path::Path,
+) -> Option<()> {
+    let status = std::process::Command::new(tool)
+        .args(args)
+        .arg(input)
+        .arg(output)
+        .status();
+    match status {
+        Ok(s) if s.success() => Some(()),
+        Ok(s) => panic!("{tool} failed ({s}) on {}", input.display()),
+        Err(_) if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") => {
+            panic!("{tool} (dcmtk) is required: apt-get install dcmtk")
+        }
+        Err(_) => {
+            eprintln!("skipped: {tool} (dcmtk) not installed");
+            None
+        }
+    }
+}
+
+#[test]
+fn jpeg_lossless_and_deflated_decode_like_dcmtk() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = Config::default_config().unwrap();
+    for (rel, tool, args, ts) in [
+        (
+            format!("{STORE}/JPEG-LL.dcm"),
+            "dcmdjpeg",
+            &[][..],
+            "1.2.840.10008.1.2.4.70",
+        ),
+        (
+            format!("{PYD}/image_dfl.dcm"),
+            "dcmconv",
+            &["+te"][..],
+            "1.2.840.10008.1.2.1.99",
+        ),
+    ] {
+        let Some(input) = testdata(&rel) else { return };
+        let plain = dir.path().join("plain.dcm");
+        let Some(()) = dcmtk(tool, args, &input, &plain) else {
+            return;
+        };
+        let ours = image::load(&input, None, &cfg.ingest).unwrap();
+        let theirs = image::load(&plain, None, &cfg.ingest).unwrap();
+        assert_eq!(ours.info.transfer_syntax, ts);
+        assert_eq!(theirs.info.transfer_syntax, "1.2.840.10008.1.2.1");
+        assert_same_voxels(&ours, &theirs, &rel);
+        assert!(sum(&ours.volume.data) > 0.0, "{rel}: an image, not zeros");
+    }
+}
