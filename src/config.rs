@@ -35,6 +35,16 @@ pub enum ConfigError {
 #[serde(deny_unknown_fields)]
 pub struct Config {
     pub ingest: IngestConfig,
+    pub landmarks: crate::register::landmarks::CheckConfig,
+    pub rigid: RigidConfig,
+}
+
+/// Knobs of the rigid (landmark) alignment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigidConfig {
+    /// Fit an isotropic scale as well (Umeyama) instead of a pure rigid motion (Kabsch).
+    pub with_scale: bool,
 }
 
 /// Knobs of the ingest stage (reading DICOM series and NIfTI volumes).

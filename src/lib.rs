@@ -11,5 +11,6 @@ pub mod image;
 pub mod io_util;
 pub mod mesh;
 pub mod progress;
+pub mod register;
 
 pub use error::{Error, ExitStatus};

@@ -4,6 +4,7 @@
 pub mod dicom;
 mod error;
 pub mod nifti;
+pub mod sample;
 mod volume;
 
 use std::path::Path;
@@ -12,6 +13,7 @@ use serde::Serialize;
 
 use crate::config::IngestConfig;
 pub use error::ImageError;
+pub use sample::Sampler;
 pub use volume::Volume;
 
 /// What ingest learned about the input besides the voxels (never a patient field or raw UID).

@@ -1,0 +1,132 @@
+//! Typing the landmarks at a prompt, in LPS mm (`x y z`) or in voxel indices (`v i j k`).
+//! Each answer is echoed with its position in both systems and the intensity there; a bad or
+//! out-of-image answer is explained and asked again. Works on a terminal (dialoguer) and line
+//! by line from a pipe, for scripts and tests.
+
+use std::io::{BufRead, Write};
+
+use nalgebra::{Point3, Vector3};
+
+use super::{LandmarkError, LandmarkName, Landmarks};
+use crate::image::Sampler;
+
+/// Where the answers come from.
+pub enum PromptInput<'a> {
+    /// An interactive terminal (line editing through dialoguer).
+    Terminal,
+    /// Lines from a reader (a pipe); prompts and echoes go to `echo`.
+    Lines {
+        input: &'a mut dyn BufRead,
+        echo: &'a mut dyn Write,
+    },
+}
+
+/// Parses one answer into a world (LPS mm) position.
+fn parse_answer(text: &str, sampler: &Sampler) -> Result<Point3<f64>, String> {
+    let lower = text.trim().to_ascii_lowercase();
+    let (voxel, rest) = match lower
+        .strip_prefix("voxel")
+        .or_else(|| lower.strip_prefix('v'))
+    {
+        Some(rest) => (true, rest.to_string()),
+        None => (false, lower.clone()),
+    };
+    let nums: Result<Vec<f64>, _> = rest
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .map(str::parse::<f64>)
+        .collect();
+    let nums = nums.map_err(|_| {
+        format!("{text:?}: expected three numbers, 'x y z' (LPS mm) or 'v i j k' (voxel indices)")
+    })?;
+    if nums.len() != 3 || nums.iter().any(|v| !v.is_finite()) {
+        return Err(format!("{text:?}: expected exactly three finite numbers"));
+    }
+    let v = Vector3::new(nums[0], nums[1], nums[2]);
+    let p = if voxel {
+        Point3::from(sampler.volume().index_to_world(v))
+    } else {
+        Point3::from(v)
+    };
+    if !sampler.contains(&p) {
+        let ijk = sampler.index_of(&p);
+        return Err(format!(
+            "({:.2}, {:.2}, {:.2}) mm LPS is outside the image (voxel {:.1}, {:.1}, {:.1}; dims {:?})",
+            p.x,
+            p.y,
+            p.z,
+            ijk.x,
+            ijk.y,
+            ijk.z,
+            sampler.volume().dims
+        ));
+    }
+    Ok(p)
+}
+
+fn describe(name: LandmarkName, p: &Point3<f64>, sampler: &Sampler) -> String {
+    let ijk = sampler.index_of(p);
+    let value = sampler
+        .sample(p)
+        .map_or("n/a".to_string(), |v| format!("{v:.0}"));
+    format!(
+        "{}: ({:.3}, {:.3}, {:.3}) mm LPS = voxel ({:.2}, {:.2}, {:.2}), intensity {value}",
+        name.key(),
+        p.x,
+        p.y,
+        p.z,
+        ijk.x,
+        ijk.y,
+        ijk.z
+    )
+}
+
+/// Asks for the three landmarks in turn.
+pub fn prompt_landmarks(
+    mut input: PromptInput,
+    sampler: &Sampler,
+) -> Result<Landmarks, LandmarkError> {
+    let mut points = Vec::with_capacity(3);
+    for name in LandmarkName::ALL {
+        let question = format!("{} ('x y z' in LPS mm, or 'v i j k' in voxels)", name.key());
+        let p = match &mut input {
+            PromptInput::Terminal => {
+                let answer: String = dialoguer::Input::new()
+                    .with_prompt(&question)
+                    .validate_with(|s: &String| parse_answer(s, sampler).map(|_| ()))
+                    .interact_text()
+                    .map_err(|_| LandmarkError::PromptEnded)?;
+                let p = parse_answer(&answer, sampler).map_err(|_| LandmarkError::PromptEnded)?;
+                eprintln!("  {}", describe(name, &p, sampler));
+                p
+            }
+            PromptInput::Lines { input, echo } => loop {
+                let _ = write!(echo, "{question}: ");
+                let _ = echo.flush();
+                let mut line = String::new();
+                let read = input
+                    .read_line(&mut line)
+                    .map_err(|_| LandmarkError::PromptEnded)?;
+                if read == 0 {
+                    let _ = writeln!(echo);
+                    return Err(LandmarkError::PromptEnded);
+                }
+                if line.trim().is_empty() {
+                    let _ = writeln!(echo, "(empty answer)");
+                    continue;
+                }
+                match parse_answer(&line, sampler) {
+                    Ok(p) => {
+                        let _ = writeln!(echo, "\n  {}", describe(name, &p, sampler));
+                        break p;
+                    }
+                    Err(msg) => {
+                        let _ = writeln!(echo, "\n  {msg}; try again");
+                    }
+                }
+            },
+        };
+        points.push(p);
+    }
+    Ok(Landmarks::from_points([points[0], points[1], points[2]]))
+}

@@ -1,0 +1,10 @@
+//! Registration of the atlas onto a patient: landmarks, the ear's side, the rigid (Kabsch /
+//! Umeyama) alignment, and (later) the deformable stage.
+
+pub mod landmarks;
+pub mod rigid;
+pub mod side;
+
+pub use landmarks::{LandmarkName, Landmarks};
+pub use rigid::{RigidFit, SimilarityTransform, fit_similarity};
+pub use side::Side;
