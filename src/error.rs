@@ -19,6 +19,10 @@ pub enum Error {
     Image(#[from] crate::image::ImageError),
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
+    #[error(transparent)]
+    Landmark(#[from] crate::register::landmarks::LandmarkError),
+    #[error(transparent)]
+    Case(#[from] crate::pipeline::case::CaseNotFound),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -33,7 +37,11 @@ impl Error {
     /// The exit status this error maps to.
     pub fn exit_status(&self) -> ExitStatus {
         match self {
-            Error::Image(_) | Error::Config(_) | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Image(_)
+            | Error::Config(_)
+            | Error::Landmark(_)
+            | Error::Case(_)
+            | Error::Usage(_) => ExitStatus::BadInput,
             Error::Io { .. } => ExitStatus::CaseFailed,
         }
     }

@@ -234,3 +234,65 @@ fn prompt_from_a_pipe_reasks_on_bad_input_and_accepts_voxels() {
     .unwrap_err();
     assert!(matches!(err, LandmarkError::PromptEnded));
 }
+
+#[test]
+fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let volume = Volume {
+        dims: [16, 16, 16],
+        spacing: [0.5, 0.5, 0.5],
+        origin: Vector3::new(10.0, -32.0, 100.0),
+        direction: nalgebra::Matrix3::identity(),
+        data: vec![100.0; 4096],
+    };
+    let identity = otoatlas::image::dicom::write::SeriesIdentity {
+        study_uid: "2.25.1".into(),
+        series_uid: "2.25.2".into(),
+        frame_of_reference_uid: "2.25.3".into(),
+        patient_name: "DOE^JOHN".into(),
+        patient_id: "X1".into(),
+        patient_birth_date: "19600101".into(),
+        series_description: "lm".into(),
+        laterality: Some("L".into()),
+    };
+    let rescale =
+        otoatlas::image::dicom::write::SliceRescale::Fixed(otoatlas::image::dicom::Rescale {
+            slope: 1.0,
+            intercept: 0.0,
+        });
+    otoatlas::image::dicom::write::write_series(
+        &dir.path().join("dicom"),
+        &volume,
+        &identity,
+        &rescale,
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(["landmarks", dir.path().to_str().unwrap(), "--quiet"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(b"12.5 -30.25 101\nv 8 10 13\n10.75 -26.5 103.25\n")
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for name in ["landmarks.fcsv", "landmarks.json"] {
+        let read = read_landmarks(&dir.path().join(name)).unwrap();
+        assert_points(&read.landmarks, &expected());
+    }
+    // the side comes from the DICOM Laterality
+    let json = read_landmarks(&dir.path().join("landmarks.json")).unwrap();
+    assert_eq!(json.side, Some(Side::Left));
+}

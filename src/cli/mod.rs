@@ -2,6 +2,7 @@
 //! lives in its own file; this one only parses, runs and maps errors to exit codes.
 
 mod inspect;
+mod landmarks;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -29,6 +30,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     Inspect(inspect::InspectArgs),
+    Landmarks(landmarks::LandmarksArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script.
@@ -50,9 +52,11 @@ pub fn main() -> ExitCode {
     progress::set_quiet(cli.quiet);
     let json = match &cli.command {
         Command::Inspect(a) => a.json,
+        Command::Landmarks(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
+        Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
     };
     match result {
         Ok(report) => {

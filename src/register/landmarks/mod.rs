@@ -13,6 +13,7 @@ use serde::Serialize;
 
 pub use checks::{CheckConfig, check_landmarks};
 pub use formats::{read_landmarks, write_fcsv, write_json, write_mrk_json};
+
 pub use prompt::{PromptInput, prompt_landmarks};
 
 use super::Side;

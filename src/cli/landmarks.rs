@@ -1,0 +1,107 @@
+//! `otoatlas landmarks`: type the three landmarks of a case at a prompt and save them.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use serde_json::json;
+
+use super::Report;
+use crate::config::Config;
+use crate::image::{self, Sampler};
+use crate::io_util::write_atomic;
+use crate::pipeline::Case;
+use crate::register::Side;
+use crate::register::landmarks::{
+    PromptInput, check_landmarks, prompt_landmarks, write_fcsv, write_json,
+};
+use crate::{Error, progress};
+
+/// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel
+/// indices) and save them as Slicer .fcsv and our .json.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Answers are 'x y z' in LPS mm or 'v i j k' in voxel indices; each is
+echoed with the intensity there, and asked again if it is not understood or outside the image.
+On a pipe, one answer per line.
+
+Examples:
+  otoatlas landmarks sample_cases/case01
+  printf '1 2 3\\nv 10 20 30\\n4 5 6\\n' | otoatlas landmarks scan.nii.gz --out picks.fcsv"
+)]
+pub struct LandmarksArgs {
+    /// The case folder (or a bare image).
+    pub case: PathBuf,
+    /// Where to write: a .fcsv or .json path (the other format is written beside it).
+    /// Default: CASE/landmarks.fcsv and CASE/landmarks.json.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Print machine-readable JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn out_paths(args: &LandmarksArgs, case: &Case) -> (PathBuf, PathBuf) {
+    match &args.out {
+        Some(p) if p.to_string_lossy().to_ascii_lowercase().ends_with(".json") => {
+            (p.with_extension("fcsv"), p.clone())
+        }
+        Some(p) => (p.clone(), p.with_extension("json")),
+        None if case.root.join("dicom").exists() || case.image != case.root => (
+            case.root.join("landmarks.fcsv"),
+            case.root.join("landmarks.json"),
+        ),
+        None => (
+            PathBuf::from("landmarks.fcsv"),
+            PathBuf::from("landmarks.json"),
+        ),
+    }
+}
+
+pub fn run(args: &LandmarksArgs, config: Option<&Path>) -> Result<Report, Error> {
+    let config = Config::load(config)?;
+    let case = Case::open(&args.case)?;
+    let loaded = image::load(&case.image, None, &config.ingest)?;
+    let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
+        Error::Usage(format!(
+            "{}: the image geometry is degenerate",
+            case.image.display()
+        ))
+    })?;
+    let input = if std::io::stdin().is_terminal() {
+        prompt_landmarks(PromptInput::Terminal, &sampler)?
+    } else {
+        let stdin = std::io::stdin();
+        let mut lock = stdin.lock();
+        let mut stderr = std::io::stderr();
+        prompt_landmarks(
+            PromptInput::Lines {
+                input: &mut lock,
+                echo: &mut stderr,
+            },
+            &sampler,
+        )?
+    };
+    check_landmarks(&input, Some(&sampler), None, &config.landmarks)?;
+    let side = loaded.info.laterality.as_deref().and_then(Side::parse);
+    let (fcsv, json_path) = out_paths(args, &case);
+    write_atomic(&fcsv, write_fcsv(&input).as_bytes())?;
+    write_atomic(&json_path, write_json(&input, side).as_bytes())?;
+    progress::log(format!(
+        "wrote {} and {}",
+        fcsv.display(),
+        json_path.display()
+    ));
+    let json = json!({
+        "fcsv": fcsv,
+        "json": json_path,
+        "side": side.map(Side::as_str),
+        "landmarks": {
+            "umbo": input.umbo.coords.as_slice(),
+            "incudomalleolar": input.incudomalleolar.coords.as_slice(),
+            "incudostapedial": input.incudostapedial.coords.as_slice(),
+        },
+    });
+    let text = format!("wrote {} and {}\n", fcsv.display(), json_path.display());
+    Ok(Report { text, json })
+}
