@@ -10,7 +10,7 @@ use std::io::Read;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
-use ndarray::{Axis, Ix3};
+use ndarray::{Axis, Ix3, ShapeBuilder};
 use nifti::{IntoNdArray, NiftiObject, ReaderOptions};
 
 use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
@@ -500,4 +500,72 @@ fn geometry(h: &Header, path: &Path) -> Result<Geometry, ImageError> {
     });
     let origin = affine.fixed_view::<3, 1>(0, 3).into_owned();
     Ok((dims, spacing, origin, direction, warnings))
+}
+
+/// The world-to-file affine of `geometry` in NIfTI's RAS convention (LPS negated on x, y).
+fn ras_affine_of(geometry: &Volume) -> Matrix4<f64> {
+    let mut lps = Matrix4::identity();
+    lps.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&geometry.index_to_world_matrix());
+    lps.fixed_view_mut::<3, 1>(0, 3).copy_from(&geometry.origin);
+    Matrix4::from_diagonal(&nalgebra::Vector4::new(-1.0, -1.0, 1.0, 1.0)) * lps
+}
+
+/// Writes `data` (i fastest, the dims of `geometry`) as a NIfTI-1 file with the geometry's
+/// affine in both sform and qform (scanner-anatomical, mm). Compressed when the name ends in
+/// `.gz`. Written atomically: a temporary folder beside the target, then a rename. The gzip
+/// stream carries no timestamp, so equal inputs give equal bytes.
+pub fn write_nifti<T>(path: &Path, geometry: &Volume, data: &[T]) -> Result<(), crate::Error>
+where
+    T: nifti::DataElement + bytemuck::Pod + Clone,
+{
+    let io = |source: std::io::Error| crate::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let [nx, ny, nz] = geometry.dims;
+    if data.len() != nx * ny * nz {
+        return Err(io(std::io::Error::other(format!(
+            "{} values for dims {:?}",
+            data.len(),
+            geometry.dims
+        ))));
+    }
+    let array = ndarray::Array3::from_shape_vec((nx, ny, nz).f(), data.to_vec())
+        .map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    let mut pixdim = [1.0f32; 8];
+    for a in 0..3 {
+        pixdim[a + 1] = geometry.spacing[a] as f32;
+    }
+    let mut header = nifti::NiftiHeader {
+        pixdim,
+        xyzt_units: 2, // mm
+        ..Default::default()
+    };
+    let affine = ras_affine_of(geometry);
+    header.set_sform(&affine, nifti::XForm::ScannerAnat);
+    header.set_qform(&affine, nifti::XForm::ScannerAnat);
+    let name = path
+        .file_name()
+        .ok_or_else(|| io(std::io::Error::other("no file name")))?;
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let tmp_dir = parent.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&tmp_dir).map_err(io)?;
+    let tmp = tmp_dir.join(name);
+    let gz = name.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
+    let result = nifti::writer::WriterOptions::new(&tmp)
+        .reference_header(&header)
+        .compress(gz)
+        .write_nifti(&array)
+        .map_err(|e| io(std::io::Error::other(e.to_string())))
+        .and_then(|_| std::fs::rename(&tmp, path).map_err(io));
+    let _ = std::fs::remove_dir_all(&tmp_dir);
+    result
 }
