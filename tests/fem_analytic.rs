@@ -58,13 +58,19 @@ fn patch_test(f: Matrix3<f64>, interior_start: Matrix3<f64>) {
     let field = |p: &Point3<f64>, m: &Matrix3<f64>| Point3::from(m * p.coords + c);
     let exact: Vec<_> = mesh.nodes.iter().map(|p| field(p, &f)).collect();
     let boundary = mesh.boundary_nodes();
-    let mut x: Vec<_> = mesh.nodes.iter().map(|p| field(p, &interior_start)).collect();
+    let mut x: Vec<_> = mesh
+        .nodes
+        .iter()
+        .map(|p| field(p, &interior_start))
+        .collect();
     for &n in &boundary {
         x[n as usize] = exact[n as usize];
     }
     let fixed = FixedDofs::from_nodes(mesh.nodes.len(), &boundary).unwrap();
     let mut solver = StaticSolver::new(&model, fixed).unwrap();
-    let report = solver.solve(&mut x, &StaticLoads::default(), &tight()).unwrap();
+    let report = solver
+        .solve(&mut x, &StaticLoads::default(), &tight())
+        .unwrap();
     let scale = mesh
         .nodes
         .iter()
@@ -125,7 +131,11 @@ fn uniaxial_tension_with_poisson_contraction() {
     let model = model(&mesh.nodes, &mesh.tets);
     let mut dofs = Vec::new();
     for axis in 0..3 {
-        dofs.extend(mesh.nodes_on_plane(axis, 0.0).iter().map(|n| 3 * n + axis as u32));
+        dofs.extend(
+            mesh.nodes_on_plane(axis, 0.0)
+                .iter()
+                .map(|n| 3 * n + axis as u32),
+        );
     }
     let end = mesh.nodes_on_plane(0, length);
     dofs.extend(end.iter().map(|n| 3 * n));
@@ -135,7 +145,9 @@ fn uniaxial_tension_with_poisson_contraction() {
     }
     let fixed = FixedDofs::from_dofs(mesh.nodes.len(), &dofs).unwrap();
     let mut solver = StaticSolver::new(&model, fixed).unwrap();
-    solver.solve(&mut x, &StaticLoads::default(), &tight()).unwrap();
+    solver
+        .solve(&mut x, &StaticLoads::default(), &tight())
+        .unwrap();
 
     let mut state = CorotationalState::new(&model);
     let mut f = vec![Vector3::zeros(); x.len()];
@@ -145,11 +157,17 @@ fn uniaxial_tension_with_poisson_contraction() {
     let expected = MAT.youngs_modulus * strain;
     println!("uniaxial: sigma = {stress} Pa, E eps = {expected} Pa");
     assert!((stress - expected).abs() <= 1e-6 * expected);
-    for (axis, plane) in [(1, mesh.nodes_on_plane(1, side)), (2, mesh.nodes_on_plane(2, side))] {
+    for (axis, plane) in [
+        (1, mesh.nodes_on_plane(1, side)),
+        (2, mesh.nodes_on_plane(2, side)),
+    ] {
         for n in plane {
             let lateral = (x[n as usize][axis] - side) / side;
             let expected = -MAT.poisson_ratio * strain;
-            assert!((lateral - expected).abs() <= 1e-6 * expected.abs(), "{lateral}");
+            assert!(
+                (lateral - expected).abs() <= 1e-6 * expected.abs(),
+                "{lateral}"
+            );
         }
     }
 }
@@ -183,7 +201,10 @@ fn cantilever_tip_deflection(n: usize) -> f64 {
     };
     solver.solve(&mut x, &loads, &options).unwrap();
     let tip = mesh.nodes_on_plane(0, length);
-    -tip.iter().map(|&i| x[i as usize].z - mesh.nodes[i as usize].z).sum::<f64>() / tip.len() as f64
+    -tip.iter()
+        .map(|&i| x[i as usize].z - mesh.nodes[i as usize].z)
+        .sum::<f64>()
+        / tip.len() as f64
 }
 
 #[test]

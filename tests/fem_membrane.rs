@@ -8,8 +8,8 @@ mod common;
 use common::{Jitter, rectangle_membrane};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
-    CorotationalState, Elements, FemModel, FixedDofs, MembraneMaterial, StaticLoads,
-    StaticOptions, StaticSolver,
+    CorotationalState, Elements, FemModel, FixedDofs, MembraneMaterial, StaticLoads, StaticOptions,
+    StaticSolver,
 };
 
 const MAT: MembraneMaterial = MembraneMaterial {
@@ -69,9 +69,24 @@ fn in_plane_patch_test_solved() {
         tolerance_mm: 1e-14,
         ..StaticOptions::default()
     };
-    solver.solve(&mut x, &StaticLoads::default(), &options).unwrap();
-    let scale = max_norm(nodes.iter().zip(&exact).map(|(p, q)| q - p).collect::<Vec<_>>().iter());
-    let err = max_norm(x.iter().zip(&exact).map(|(p, q)| p - q).collect::<Vec<_>>().iter());
+    solver
+        .solve(&mut x, &StaticLoads::default(), &options)
+        .unwrap();
+    let scale = max_norm(
+        nodes
+            .iter()
+            .zip(&exact)
+            .map(|(p, q)| q - p)
+            .collect::<Vec<_>>()
+            .iter(),
+    );
+    let err = max_norm(
+        x.iter()
+            .zip(&exact)
+            .map(|(p, q)| p - q)
+            .collect::<Vec<_>>()
+            .iter(),
+    );
     println!("membrane patch: max error {err:e} mm (scale {scale:e} mm)");
     assert!(err <= 1e-9 * scale);
 }
@@ -91,7 +106,10 @@ fn homogeneous_stress_in_rotated_tilted_plane() {
     );
     let q = spin * tilt;
     let t = Vector3::new(1.0, 2.0, -3.0);
-    let x: Vec<_> = flat.iter().map(|p| q * Point3::from(s * p.coords) + t).collect();
+    let x: Vec<_> = flat
+        .iter()
+        .map(|p| q * Point3::from(s * p.coords) + t)
+        .collect();
     let mut state = CorotationalState::new(&model);
     let mut f = vec![Vector3::zeros(); x.len()];
     model.elastic_forces(&x, &mut state, &mut f).unwrap();
@@ -106,7 +124,12 @@ fn homogeneous_stress_in_rotated_tilted_plane() {
         .filter(|(p, _)| (p.x - SIZE[0]).abs() < 1e-12)
         .map(|(_, f)| f)
         .sum();
-    let interior = max_norm(flat.iter().zip(&f).filter(|(p, _)| !on_edge(p)).map(|(_, f)| f));
+    let interior = max_norm(
+        flat.iter()
+            .zip(&f)
+            .filter(|(p, _)| !on_edge(p))
+            .map(|(_, f)| f),
+    );
     println!("tilted plane: edge {right:?} vs {edge_resultant:?}, interior max {interior:e}");
     assert!((right - edge_resultant).norm() <= 1e-9 * edge_resultant.norm());
     assert!(interior <= 1e-9 * edge_resultant.norm());
@@ -124,7 +147,10 @@ fn rigid_motion_of_curved_patch_gives_zero_force() {
         &Unit::new_normalize(Vector3::new(0.3, -1.0, 0.7)),
         60f64.to_radians(),
     );
-    let x: Vec<_> = nodes.iter().map(|p| q * p + Vector3::new(4.0, 0.5, -1.0)).collect();
+    let x: Vec<_> = nodes
+        .iter()
+        .map(|p| q * p + Vector3::new(4.0, 0.5, -1.0))
+        .collect();
     let mut state = CorotationalState::new(&model);
     let mut f = vec![Vector3::zeros(); x.len()];
     model.elastic_forces(&x, &mut state, &mut f).unwrap();
@@ -164,7 +190,9 @@ fn uniaxial_plane_stress_tension() {
         tolerance_mm: 1e-14,
         ..StaticOptions::default()
     };
-    solver.solve(&mut x, &StaticLoads::default(), &options).unwrap();
+    solver
+        .solve(&mut x, &StaticLoads::default(), &options)
+        .unwrap();
     let mut state = CorotationalState::new(&model);
     let mut f = vec![Vector3::zeros(); x.len()];
     model.elastic_forces(&x, &mut state, &mut f).unwrap();
@@ -172,7 +200,11 @@ fn uniaxial_plane_stress_tension() {
     let expected = MAT.youngs_modulus * strain;
     println!("membrane uniaxial: sigma {stress} Pa vs E eps {expected} Pa");
     assert!((stress - expected).abs() <= 1e-6 * expected);
-    for (n, p) in nodes.iter().enumerate().filter(|(_, p)| (p.y - SIZE[1]).abs() < 1e-12) {
+    for (n, p) in nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| (p.y - SIZE[1]).abs() < 1e-12)
+    {
         let lateral = (x[n].y - p.y) / SIZE[1];
         let want = -MAT.poisson_ratio * strain;
         assert!((lateral - want).abs() <= 1e-6 * want.abs(), "{lateral}");
@@ -190,5 +222,8 @@ fn lumped_membrane_mass_is_rho_h_area_over_three() {
     let cell = SIZE[0] / CELLS[0] as f64 * SIZE[1] / CELLS[1] as f64;
     let corner = MAT.density * MAT.thickness * cell / 2.0 / 3.0;
     let m0 = model.lumped_masses()[0];
-    assert!((m0 - 2.0 * corner).abs() <= 1e-12 * corner, "{m0} vs {corner}");
+    assert!(
+        (m0 - 2.0 * corner).abs() <= 1e-12 * corner,
+        "{m0} vs {corner}"
+    );
 }

@@ -81,12 +81,18 @@ impl SparsePattern {
         let ranks = |elements_pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Vec<u32> {
             elements_pairs.map(|(p, q)| rank(p, q)).collect()
         };
-        let tet_ranks = ranks(&mut model.tets.iter().flat_map(|e| {
-            pairs::<4>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))
-        }));
-        let membrane_ranks = ranks(&mut model.membranes.iter().flat_map(|e| {
-            pairs::<3>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))
-        }));
+        let tet_ranks = ranks(
+            &mut model
+                .tets
+                .iter()
+                .flat_map(|e| pairs::<4>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
+        );
+        let membrane_ranks = ranks(
+            &mut model
+                .membranes
+                .iter()
+                .flat_map(|e| pairs::<3>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
+        );
         SparsePattern {
             symbolic,
             tet_ranks,
@@ -158,9 +164,9 @@ impl SparsePattern {
                 }
             }
         }
-        for dof in 0..self.dof_count() {
+        for (dof, &start) in col_ptr[..self.dof_count()].iter().enumerate() {
             if fixed.is_fixed(dof) {
-                sink.values[col_ptr[dof]] = 1.0;
+                sink.values[start] = 1.0;
             }
         }
     }

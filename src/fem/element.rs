@@ -50,7 +50,11 @@ impl<const N: usize> CorotElement<N> {
 
     /// Visits the warped stiffness blocks R K_ab Rᵀ (µN/mm, rows of node a, columns of node
     /// b) for every local pair a ≤ b, in the order (0,0), (0,1), …, (0,N−1), (1,1), ….
-    pub fn warped_blocks(&self, r: &Matrix3<f64>, mut visit: impl FnMut(usize, usize, Matrix3<f64>)) {
+    pub fn warped_blocks(
+        &self,
+        r: &Matrix3<f64>,
+        mut visit: impl FnMut(usize, usize, Matrix3<f64>),
+    ) {
         let g = self.grads.map(|g| r * g);
         let n = r * self.rest_normal;
         let plane = (Matrix3::identity() - n * n.transpose()) * self.lame.mu;
@@ -58,10 +62,9 @@ impl<const N: usize> CorotElement<N> {
         for a in 0..N {
             for b in a..N {
                 let dot = self.grads[a].dot(&self.grads[b]);
-                let blk = (g[a] * g[b].transpose() * lambda
-                    + g[b] * g[a].transpose() * mu
-                    + plane * dot)
-                    * w;
+                let blk =
+                    (g[a] * g[b].transpose() * lambda + g[b] * g[a].transpose() * mu + plane * dot)
+                        * w;
                 visit(a, b, blk);
             }
         }

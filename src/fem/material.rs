@@ -75,7 +75,12 @@ fn check_elastic(kind: &'static str, index: usize, e: f64, nu: f64) -> Result<()
 impl TetMaterial {
     /// Checks E > 0, −1 < ν < 0.5, ρ > 0, all finite; `index` names the material in errors.
     pub fn validate(&self, index: usize) -> Result<(), FemError> {
-        check_elastic("tetrahedron", index, self.youngs_modulus, self.poisson_ratio)?;
+        check_elastic(
+            "tetrahedron",
+            index,
+            self.youngs_modulus,
+            self.poisson_ratio,
+        )?;
         check(
             "tetrahedron",
             index,

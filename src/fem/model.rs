@@ -107,7 +107,10 @@ impl FemModel {
         tets: TetElements<'_>,
         membranes: MembraneElements<'_>,
     ) -> Result<Self, FemError> {
-        if let Some(i) = rest.iter().position(|p| !p.coords.iter().all(|c| c.is_finite())) {
+        if let Some(i) = rest
+            .iter()
+            .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+        {
             return Err(FemError::NonFinite {
                 what: "rest position",
                 index: i,

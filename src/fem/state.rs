@@ -93,8 +93,10 @@ impl CorotationalState {
         self.failed
             .extend(tets.filter(|(_, ok)| !**ok).map(|(i, _)| ElementId::Tet(i)));
         let tris = self.membranes.admissible.iter().enumerate();
-        self.failed
-            .extend(tris.filter(|(_, ok)| !**ok).map(|(i, _)| ElementId::Membrane(i)));
+        self.failed.extend(
+            tris.filter(|(_, ok)| !**ok)
+                .map(|(i, _)| ElementId::Membrane(i)),
+        );
         Ok(())
     }
 
@@ -119,7 +121,10 @@ pub(crate) fn check_positions(model: &FemModel, x: &[Point3<f64>]) -> Result<(),
             found: x.len(),
         });
     }
-    match x.iter().position(|p| !p.coords.iter().all(|c| c.is_finite())) {
+    match x
+        .iter()
+        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
         Some(i) => Err(FemError::NonFinite {
             what: "position of node",
             index: i,

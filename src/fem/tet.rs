@@ -31,9 +31,9 @@ pub(crate) fn rest_tet(
         .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
         .map(|(a, b)| (p[a] - p[b]).norm())
         .fold(0.0, f64::max);
-    let inverse = dm.try_inverse().filter(|_| {
-        volume.is_finite() && volume > DEGENERATE_VOLUME * longest.powi(3)
-    });
+    let inverse = dm
+        .try_inverse()
+        .filter(|_| volume.is_finite() && volume > DEGENERATE_VOLUME * longest.powi(3));
     let Some(dm_inv) = inverse else {
         return Err(FemError::DegenerateElement {
             kind: "tetrahedron",
@@ -133,11 +133,12 @@ mod tests {
         let f = tet.deformation(&x);
         let forces = tet.forces(&Matrix3::identity(), &f);
         let k = voigt_stiffness(&tet);
-        let uv = nalgebra::SVector::<f64, 12>::from_iterator(u.iter().flat_map(|v| v.iter().copied()));
+        let uv =
+            nalgebra::SVector::<f64, 12>::from_iterator(u.iter().flat_map(|v| v.iter().copied()));
         let ku = k * uv;
-        for a in 0..4 {
+        for (a, force) in forces.iter().enumerate() {
             let expected = -ku.fixed_rows::<3>(3 * a);
-            assert!((forces[a] - expected).norm() < 1e-12 * ku.norm());
+            assert!((force - expected).norm() < 1e-12 * ku.norm());
         }
     }
 
