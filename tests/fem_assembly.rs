@@ -93,7 +93,9 @@ fn tangent_equals_finite_difference_of_forces_at_rigid_state() {
     state.update(&model, &x).unwrap();
     let free = FixedDofs::from_nodes(x.len(), &[]).unwrap();
     let mut values = pattern.zero_values();
-    pattern.assemble(&model, &state, 1.0, None, &free, &mut values);
+    pattern
+        .assemble(&model, &state, 1.0, None, &free, &mut values)
+        .unwrap();
     let k = dense(&pattern, &values);
 
     let n = model.dof_count();
@@ -133,8 +135,12 @@ fn fixed_dofs_are_projected_and_cholesky_solves() {
     let fixed = FixedDofs::from_nodes(x.len(), &clamp).unwrap();
     let diag: Vec<f64> = (0..x.len()).map(|v| 10.0 + v as f64).collect();
     let (mut a_free, mut a_fixed) = (pattern.zero_values(), pattern.zero_values());
-    pattern.assemble(&model, &state, 0.5, Some(&diag), &free, &mut a_free);
-    pattern.assemble(&model, &state, 0.5, Some(&diag), &fixed, &mut a_fixed);
+    pattern
+        .assemble(&model, &state, 0.5, Some(&diag), &free, &mut a_free)
+        .unwrap();
+    pattern
+        .assemble(&model, &state, 0.5, Some(&diag), &fixed, &mut a_fixed)
+        .unwrap();
     let (a_free, a_fixed) = (dense(&pattern, &a_free), dense(&pattern, &a_fixed));
     for r in 0..n {
         for c in 0..n {
@@ -147,7 +153,9 @@ fn fixed_dofs_are_projected_and_cholesky_solves() {
         }
     }
     let mut values = pattern.zero_values();
-    pattern.assemble(&model, &state, 0.5, Some(&diag), &fixed, &mut values);
+    pattern
+        .assemble(&model, &state, 0.5, Some(&diag), &fixed, &mut values)
+        .unwrap();
     let mut chol = SparseCholesky::analyse(pattern.symbolic()).unwrap();
     let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
     for round in 0..2 {

@@ -14,6 +14,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRe
 use nalgebra::Matrix3;
 
 use super::element::CorotElement;
+use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::state::{CorotationalState, ElementStates};
@@ -129,7 +130,7 @@ impl SparsePattern {
     /// with the fixed DOFs projected out (row and column zero, diagonal 1). `state` holds the
     /// element rotations of the configuration (see `CorotationalState::update`);
     /// `node_diagonal`, if given, has one value per node (e.g. spring stiffness in µN/mm or a
-    /// scaled mass). Panics if the buffers do not match this pattern's model.
+    /// scaled mass). `model` must be the model this pattern was built from.
     pub fn assemble(
         &self,
         model: &FemModel,
@@ -138,9 +139,33 @@ impl SparsePattern {
         node_diagonal: Option<&[f64]>,
         fixed: &FixedDofs,
         values: &mut [f64],
-    ) {
-        assert_eq!(values.len(), self.nnz(), "value buffer of another pattern");
-        assert_eq!(fixed.len(), self.dof_count(), "fixed DOFs of another model");
+    ) -> Result<(), FemError> {
+        let diag_len = node_diagonal.map_or(model.node_count(), <[f64]>::len);
+        for (what, expected, found) in [
+            ("value buffer", self.nnz(), values.len()),
+            ("fixed DOF mask", self.dof_count(), fixed.len()),
+            ("model DOFs", self.dof_count(), model.dof_count()),
+            ("node diagonal", model.node_count(), diag_len),
+            (
+                "tetrahedron rank table",
+                self.tet_ranks.len(),
+                6 * model.tets.len(),
+            ),
+            (
+                "membrane rank table",
+                self.membrane_ranks.len(),
+                3 * model.membranes.len(),
+            ),
+        ] {
+            if expected != found {
+                return Err(FemError::LengthMismatch {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        state.check_model(model)?;
         values.fill(0.0);
         let col_ptr = self.symbolic.col_ptr();
         let mut sink = Sink {
@@ -157,7 +182,6 @@ impl SparsePattern {
             &mut sink,
         );
         if let Some(diag) = node_diagonal {
-            assert_eq!(diag.len(), model.node_count(), "node diagonal length");
             for (v, &d) in diag.iter().enumerate() {
                 for i in 0..3 {
                     sink.values[col_ptr[3 * v + i]] += d;
@@ -169,6 +193,7 @@ impl SparsePattern {
                 sink.values[start] = 1.0;
             }
         }
+        Ok(())
     }
 }
 

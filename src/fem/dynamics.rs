@@ -15,7 +15,7 @@ use super::cholesky::SparseCholesky;
 use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
-use super::state::{CorotationalState, check_positions};
+use super::state::CorotationalState;
 
 /// Rayleigh damping coefficients: C = mass·M + stiffness·K'.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -131,9 +131,10 @@ impl<'m> ImplicitEuler<'m> {
             Some(&self.mass_diagonal),
             &self.fixed,
             &mut self.values,
-        );
+        )?;
         self.forces.fill(Vector3::zeros());
-        self.state.add_elastic_forces(self.model, &mut self.forces);
+        self.state
+            .add_elastic_forces(self.model, &mut self.forces)?;
         if let Some(f) = external {
             self.forces.iter_mut().zip(f).for_each(|(a, b)| *a += b);
         }
@@ -150,11 +151,16 @@ impl<'m> ImplicitEuler<'m> {
         self.fixed.zero_fixed(&mut self.rhs);
         self.cholesky.factorise(self.pattern.matrix(&self.values))?;
         self.cholesky.solve_in_place(&mut self.rhs)?;
+        if let Some(i) = self.rhs.iter().position(|r| !r.is_finite()) {
+            return Err(FemError::NonFinite {
+                what: "new velocity of DOF",
+                index: i,
+            });
+        }
         for ((p, vel), r) in x.iter_mut().zip(v.iter_mut()).zip(self.rhs.chunks_exact(3)) {
             *vel = Vector3::new(r[0], r[1], r[2]);
             *p += *vel * dt;
         }
-        check_positions(self.model, x)?;
         self.state.update(self.model, x)?;
         Ok(StepReport {
             failed_elements: self.state.failed_elements().to_vec(),

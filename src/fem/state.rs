@@ -84,6 +84,7 @@ impl CorotationalState {
 
     /// Computes rotations and element forces at positions `x` (mm), one per node.
     pub fn update(&mut self, model: &FemModel, x: &[Point3<f64>]) -> Result<(), FemError> {
+        self.check_model(model)?;
         check_positions(model, x)?;
         self.tets.update(&model.tets, x, |_, f| tet_rotation(f));
         self.membranes
@@ -106,9 +107,47 @@ impl CorotationalState {
     }
 
     /// Adds the elastic nodal forces (µN) of the last update to `out` (one per node).
-    pub fn add_elastic_forces(&self, model: &FemModel, out: &mut [Vector3<f64>]) {
+    pub fn add_elastic_forces(
+        &self,
+        model: &FemModel,
+        out: &mut [Vector3<f64>],
+    ) -> Result<(), FemError> {
+        self.check_model(model)?;
+        if out.len() != model.node_count() {
+            return Err(FemError::LengthMismatch {
+                what: "force buffer",
+                expected: model.node_count(),
+                found: out.len(),
+            });
+        }
         self.tets.gather(&model.tets, out);
         self.membranes.gather(&model.membranes, out);
+        Ok(())
+    }
+
+    /// Checks that this state was made for `model` (same element counts).
+    pub(crate) fn check_model(&self, model: &FemModel) -> Result<(), FemError> {
+        for (what, expected, found) in [
+            (
+                "state tetrahedra",
+                model.tets.len(),
+                self.tets.rotations.len(),
+            ),
+            (
+                "state membrane triangles",
+                model.membranes.len(),
+                self.membranes.rotations.len(),
+            ),
+        ] {
+            if expected != found {
+                return Err(FemError::LengthMismatch {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        Ok(())
     }
 }
 
@@ -143,16 +182,8 @@ impl FemModel {
         state: &mut CorotationalState,
         f: &mut [Vector3<f64>],
     ) -> Result<(), FemError> {
-        if f.len() != self.node_count() {
-            return Err(FemError::LengthMismatch {
-                what: "force buffer",
-                expected: self.node_count(),
-                found: f.len(),
-            });
-        }
         state.update(self, x)?;
         f.fill(Vector3::zeros());
-        state.add_elastic_forces(self, f);
-        Ok(())
+        state.add_elastic_forces(self, f)
     }
 }

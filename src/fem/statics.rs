@@ -151,7 +151,7 @@ impl<'m> StaticSolver<'m> {
         let mut halvings = 0;
         let mut max_update = f64::INFINITY;
         for iteration in 1..=options.max_iterations {
-            self.residual(x, loads);
+            self.residual(x, loads)?;
             self.pattern.assemble(
                 self.model,
                 &self.state,
@@ -159,14 +159,14 @@ impl<'m> StaticSolver<'m> {
                 Some(&self.spring_diagonal),
                 &self.fixed,
                 &mut self.values,
-            );
+            )?;
             self.cholesky.factorise(self.pattern.matrix(&self.values))?;
             self.cholesky.solve_in_place(&mut self.rhs)?;
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
             halvings += h;
             max_update = step;
             if h == 0 && max_update < options.tolerance_mm {
-                self.residual(x, loads);
+                self.residual(x, loads)?;
                 let max_residual = self
                     .rhs
                     .chunks_exact(3)
@@ -227,9 +227,10 @@ impl<'m> StaticSolver<'m> {
 
     /// Writes the out-of-balance force at `x` (state already updated to `x`) into `rhs`,
     /// zero on fixed DOFs.
-    fn residual(&mut self, x: &[Point3<f64>], loads: &StaticLoads<'_>) {
+    fn residual(&mut self, x: &[Point3<f64>], loads: &StaticLoads<'_>) -> Result<(), FemError> {
         self.forces.fill(Vector3::zeros());
-        self.state.add_elastic_forces(self.model, &mut self.forces);
+        self.state
+            .add_elastic_forces(self.model, &mut self.forces)?;
         for s in loads.springs {
             let v = s.node as usize;
             self.forces[v] += (s.target - x[v]) * s.stiffness;
@@ -241,6 +242,7 @@ impl<'m> StaticSolver<'m> {
             r.copy_from_slice(f.as_slice());
         }
         self.fixed.zero_fixed(&mut self.rhs);
+        Ok(())
     }
 
     /// Applies x += αΔx (Δx in `rhs`) with the largest α = 2⁻ᵏ that keeps every element
