@@ -3,10 +3,10 @@
 //! TetrahedronFEMForceField tangent R K Rᵀ, no dR/dx term; mechanics-metrics §2.2, §4.2).
 //!
 //! Each iteration at positions x: residual r = f_el(x) + Σ k (p − x_node) + f_ext, tangent
-//! A = K'(x) + Σ k I (spring nodes), fixed DOFs projected out; assemble, factorise numerically
-//! with the reused symbolic analysis, solve A Δx = r. Inversion guard: the step x + αΔx starts
-//! at α = 1 and is halved while any tetrahedron would invert (det F ≤ 0) or any membrane
-//! triangle collapse; no returned state ever holds such an element.
+//! A = K'(x) + Σ k I (spring nodes) + shift·I (optional), fixed DOFs projected out; assemble,
+//! factorise numerically with the reused symbolic analysis, solve A Δx = r. Inversion guard:
+//! the step x + αΔx starts at α = 1 and is halved while any tetrahedron would invert
+//! (det F ≤ 0) or any membrane triangle collapse; no returned state holds such an element.
 //! Convergence: a full step (α = 1) whose largest nodal update |Δx_v| (mm) is below
 //! `tolerance_mm`; a halved step never counts as converged.
 
@@ -46,6 +46,13 @@ pub struct StaticOptions {
     pub max_iterations: usize,
     /// Step halvings allowed per iteration by the inversion guard.
     pub max_halvings: usize,
+    /// Levenberg-style shift (µN/mm) added to the tangent diagonal of every free DOF, not to
+    /// the residual: the equilibrium is unchanged, only the path (convergence slows as the
+    /// shift grows; check `StaticReport::max_residual`). The warped tangent has no stress
+    /// (geometric) stiffness, so flat membrane regions without springs are singular out of
+    /// plane; a shift above the membrane tension σh there keeps the iteration definite and
+    /// stable. (A membrane in compression has no flat equilibrium at all: it wrinkles.)
+    pub tangent_shift: f64,
 }
 
 impl Default for StaticOptions {
@@ -54,6 +61,7 @@ impl Default for StaticOptions {
             tolerance_mm: 1e-6,
             max_iterations: 100,
             max_halvings: 30,
+            tangent_shift: 0.0,
         }
     }
 }
@@ -84,7 +92,7 @@ pub struct StaticSolver<'m> {
     forces: Vec<Vector3<f64>>,
     rhs: Vec<f64>,
     trial: Vec<Point3<f64>>,
-    spring_diagonal: Vec<f64>,
+    tangent_diagonal: Vec<f64>,
 }
 
 impl<'m> StaticSolver<'m> {
@@ -109,7 +117,7 @@ impl<'m> StaticSolver<'m> {
             forces: vec![Vector3::zeros(); model.node_count()],
             rhs: vec![0.0; model.dof_count()],
             trial: Vec::with_capacity(model.node_count()),
-            spring_diagonal: vec![0.0; model.node_count()],
+            tangent_diagonal: vec![0.0; model.node_count()],
         })
     }
 
@@ -137,9 +145,9 @@ impl<'m> StaticSolver<'m> {
         options: &StaticOptions,
     ) -> Result<StaticReport, FemError> {
         self.check(loads, options)?;
-        self.spring_diagonal.fill(0.0);
+        self.tangent_diagonal.fill(options.tangent_shift);
         for s in loads.springs {
-            self.spring_diagonal[s.node as usize] += s.stiffness;
+            self.tangent_diagonal[s.node as usize] += s.stiffness;
         }
         self.state.update(self.model, x)?;
         if let Some(&first) = self.state.failed_elements().first() {
@@ -156,7 +164,7 @@ impl<'m> StaticSolver<'m> {
                 self.model,
                 &self.state,
                 1.0,
-                Some(&self.spring_diagonal),
+                Some(&self.tangent_diagonal),
                 &self.fixed,
                 &mut self.values,
             )?;
@@ -213,6 +221,13 @@ impl<'m> StaticSolver<'m> {
                 what: "nodal forces",
                 expected: n,
                 found: f.len(),
+            });
+        }
+        if !(options.tangent_shift >= 0.0 && options.tangent_shift.is_finite()) {
+            return Err(FemError::InvalidParameter {
+                what: "tangent_shift (µN/mm)",
+                value: options.tangent_shift,
+                expected: "finite and >= 0",
             });
         }
         if !(options.tolerance_mm > 0.0 && options.tolerance_mm.is_finite()) {
