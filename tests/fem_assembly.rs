@@ -156,7 +156,7 @@ fn fixed_dofs_are_projected_and_cholesky_solves() {
     pattern
         .assemble(&model, &state, 0.5, Some(&diag), &fixed, &mut values)
         .unwrap();
-    let mut chol = SparseCholesky::analyse(pattern.symbolic()).unwrap();
+    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
     let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
     for round in 0..2 {
         // Re-factorise with the same symbolic analysis.

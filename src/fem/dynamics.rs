@@ -71,7 +71,7 @@ impl<'m> ImplicitEuler<'m> {
             }
         }
         let pattern = SparsePattern::new(model);
-        let cholesky = SparseCholesky::analyse(pattern.symbolic())?;
+        let cholesky = SparseCholesky::analyse(&pattern)?;
         Ok(ImplicitEuler {
             model,
             fixed,

@@ -106,7 +106,7 @@ impl<'m> StaticSolver<'m> {
             });
         }
         let pattern = SparsePattern::new(model);
-        let cholesky = SparseCholesky::analyse(pattern.symbolic())?;
+        let cholesky = SparseCholesky::analyse(&pattern)?;
         Ok(StaticSolver {
             model,
             fixed,
