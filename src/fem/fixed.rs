@@ -58,11 +58,6 @@ impl FixedDofs {
         self.mask.is_empty()
     }
 
-    /// Number of fixed DOFs.
-    pub fn fixed_count(&self) -> usize {
-        self.mask.iter().filter(|&&f| f).count()
-    }
-
     /// Zeroes the fixed entries of a DOF vector.
     pub fn zero_fixed(&self, v: &mut [f64]) {
         for (x, &f) in v.iter_mut().zip(&self.mask) {

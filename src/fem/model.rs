@@ -177,9 +177,4 @@ impl FemModel {
     pub fn lumped_masses(&self) -> &[f64] {
         &self.masses
     }
-
-    /// Rest volume of tetrahedron `i` (mm³), if it exists.
-    pub fn tet_volume(&self, i: usize) -> Option<f64> {
-        self.tets.get(i).map(|t| t.measure)
-    }
 }
