@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod config;
 pub mod error;
+pub mod fem;
 pub mod image;
 pub mod io_util;
 pub mod mesh;

@@ -1,6 +1,10 @@
 //! Helpers shared by the integration tests: locating fetched test corpora, skipping cleanly
-//! when an optional input is absent, and running the `otoatlas` binary.
+//! when an optional input is absent, running the `otoatlas` binary and the Python checkers,
+//! and structured meshes (`meshes`).
 #![allow(dead_code)]
+
+pub mod meshes;
+pub use meshes::*;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

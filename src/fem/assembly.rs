@@ -1,0 +1,271 @@
+//! Sparse assembly of the warped tangent K' = Σ R K_e Rᵀ (lower triangle, faer CSC), with the
+//! pattern and every element's value slots computed once per mesh; each assembly re-scatters
+//! values into the same buffer without allocation.
+//!
+//! Layout: DOF 3v+i is axis i of node v. Column 3B+j holds the diagonal-block rows 3B+j..3B+2
+//! first, then the 3×3 blocks of the neighbours A > B in increasing A. An element pair (a, b)
+//! therefore only needs the rank of the larger node among the smaller node's neighbours: entry
+//! (3A+i, 3B+j) sits at col_ptr[3B+j] + (3−j) + 3·rank + i, and a diagonal-block entry
+//! (3B+i, 3B+j), i ≥ j, at col_ptr[3B+j] + (i−j). The diagonal of DOF d is at col_ptr[d].
+//! (This is what faer's `try_new_from_indices` + argsort would give, without its per-assembly
+//! allocation of a new matrix.)
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use nalgebra::Matrix3;
+
+use super::element::CorotElement;
+use super::error::FemError;
+use super::fixed::FixedDofs;
+use super::model::FemModel;
+use super::state::{CorotationalState, ElementStates};
+
+/// The symbolic lower-triangular pattern of a model's tangent matrix and the value slots of
+/// every element. Built once per mesh.
+#[derive(Debug, Clone)]
+pub struct SparsePattern {
+    symbolic: SymbolicSparseColMat<usize>,
+    tet_ranks: Vec<u32>,
+    membrane_ranks: Vec<u32>,
+}
+
+/// Local node pairs a < b of an N-node element, in a fixed order.
+fn pairs<const N: usize>() -> impl Iterator<Item = (usize, usize)> {
+    (0..N).flat_map(|a| (a + 1..N).map(move |b| (a, b)))
+}
+
+fn push_edges<const N: usize>(elements: &[CorotElement<N>], edges: &mut Vec<(u32, u32)>) {
+    for e in elements {
+        for (a, b) in pairs::<N>() {
+            let (p, q) = (e.nodes[a], e.nodes[b]);
+            edges.push((p.min(q), p.max(q)));
+        }
+    }
+}
+
+impl SparsePattern {
+    /// Builds the pattern of `model`: every node's diagonal block, plus one 3×3 block per pair
+    /// of nodes sharing an element.
+    pub fn new(model: &FemModel) -> Self {
+        let n = model.node_count();
+        let mut edges = Vec::new();
+        push_edges(&model.tets, &mut edges);
+        push_edges(&model.membranes, &mut edges);
+        edges.sort_unstable();
+        edges.dedup();
+        // Neighbours A > B of node B are edges[first[B]..first[B+1]] (sorted by A).
+        let mut first = vec![0usize; n + 1];
+        for &(lo, _) in &edges {
+            first[lo as usize + 1] += 1;
+        }
+        for v in 0..n {
+            first[v + 1] += first[v];
+        }
+        let mut col_ptr = Vec::with_capacity(3 * n + 1);
+        let mut row_idx = Vec::with_capacity(6 * n + 9 * edges.len());
+        col_ptr.push(0usize);
+        for b in 0..n {
+            for j in 0..3 {
+                row_idx.extend(3 * b + j..3 * b + 3);
+                for &(_, a) in &edges[first[b]..first[b + 1]] {
+                    row_idx.extend(3 * a as usize..3 * a as usize + 3);
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let symbolic = SymbolicSparseColMat::new_checked(3 * n, 3 * n, col_ptr, None, row_idx);
+        let rank = |p: u32, q: u32| -> u32 {
+            let (lo, hi) = (p.min(q), p.max(q));
+            let list = &edges[first[lo as usize]..first[lo as usize + 1]];
+            // The edge was inserted above, so the search always succeeds.
+            list.partition_point(|&(_, a)| a < hi) as u32
+        };
+        let ranks = |elements_pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Vec<u32> {
+            elements_pairs.map(|(p, q)| rank(p, q)).collect()
+        };
+        let tet_ranks = ranks(
+            &mut model
+                .tets
+                .iter()
+                .flat_map(|e| pairs::<4>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
+        );
+        let membrane_ranks = ranks(
+            &mut model
+                .membranes
+                .iter()
+                .flat_map(|e| pairs::<3>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
+        );
+        SparsePattern {
+            symbolic,
+            tet_ranks,
+            membrane_ranks,
+        }
+    }
+
+    /// Number of DOFs (rows = columns).
+    pub fn dof_count(&self) -> usize {
+        self.symbolic.nrows()
+    }
+
+    /// Number of stored (lower-triangle) entries.
+    pub fn nnz(&self) -> usize {
+        self.symbolic.row_idx().len()
+    }
+
+    /// The symbolic pattern (lower triangle including the diagonal).
+    pub fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        self.symbolic.as_ref()
+    }
+
+    /// A zeroed value buffer for this pattern.
+    pub fn zero_values(&self) -> Vec<f64> {
+        vec![0.0; self.nnz()]
+    }
+
+    /// A faer view of the lower-triangular matrix with `values` (length `nnz()`).
+    pub fn matrix<'a>(&'a self, values: &'a [f64]) -> SparseColMatRef<'a, usize, f64> {
+        SparseColMatRef::new(self.symbolic.as_ref(), values)
+    }
+
+    /// Assembles A = scale·K'(state) + diag(node_diagonal ⊗ I₃) into `values` (overwritten),
+    /// with the fixed DOFs projected out (row and column zero, diagonal 1). `state` holds the
+    /// element rotations of the configuration (see `CorotationalState::update`);
+    /// `node_diagonal`, if given, has one value per node (e.g. spring stiffness in µN/mm or a
+    /// scaled mass). `model` must be the model this pattern was built from.
+    pub fn assemble(
+        &self,
+        model: &FemModel,
+        state: &CorotationalState,
+        scale: f64,
+        node_diagonal: Option<&[f64]>,
+        fixed: &FixedDofs,
+        values: &mut [f64],
+    ) -> Result<(), FemError> {
+        let diag_len = node_diagonal.map_or(model.node_count(), <[f64]>::len);
+        for (what, expected, found) in [
+            ("value buffer", self.nnz(), values.len()),
+            ("fixed DOF mask", self.dof_count(), fixed.len()),
+            ("model DOFs", self.dof_count(), model.dof_count()),
+            ("node diagonal", model.node_count(), diag_len),
+            (
+                "tetrahedron rank table",
+                self.tet_ranks.len(),
+                6 * model.tets.len(),
+            ),
+            (
+                "membrane rank table",
+                self.membrane_ranks.len(),
+                3 * model.membranes.len(),
+            ),
+        ] {
+            if expected != found {
+                return Err(FemError::LengthMismatch {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        state.check_model(model)?;
+        values.fill(0.0);
+        let col_ptr = self.symbolic.col_ptr();
+        let mut sink = Sink {
+            col_ptr,
+            fixed,
+            values,
+        };
+        scatter(&model.tets, &state.tets, &self.tet_ranks, scale, &mut sink);
+        scatter(
+            &model.membranes,
+            &state.membranes,
+            &self.membrane_ranks,
+            scale,
+            &mut sink,
+        );
+        if let Some(diag) = node_diagonal {
+            for (v, &d) in diag.iter().enumerate() {
+                for i in 0..3 {
+                    sink.values[col_ptr[3 * v + i]] += d;
+                }
+            }
+        }
+        for (dof, &start) in col_ptr[..self.dof_count()].iter().enumerate() {
+            if fixed.is_fixed(dof) {
+                sink.values[start] = 1.0;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Destination of the scatter: the values, their column pointers and the fixed DOFs.
+struct Sink<'a> {
+    col_ptr: &'a [usize],
+    fixed: &'a FixedDofs,
+    values: &'a mut [f64],
+}
+
+impl Sink<'_> {
+    /// Adds block `k` (rows of node `hi`, columns of node `lo`, hi > lo) at neighbour `rank`.
+    #[inline]
+    fn add_off_diagonal(&mut self, hi: usize, lo: usize, rank: usize, k: &Matrix3<f64>) {
+        for j in 0..3 {
+            if self.fixed.is_fixed(3 * lo + j) {
+                continue;
+            }
+            let base = self.col_ptr[3 * lo + j] + (3 - j) + 3 * rank;
+            for i in 0..3 {
+                if !self.fixed.is_fixed(3 * hi + i) {
+                    self.values[base + i] += k[(i, j)];
+                }
+            }
+        }
+    }
+
+    /// Adds the lower triangle of the diagonal block `k` of node `v`.
+    #[inline]
+    fn add_diagonal(&mut self, v: usize, k: &Matrix3<f64>) {
+        for j in 0..3 {
+            if self.fixed.is_fixed(3 * v + j) {
+                continue;
+            }
+            let base = self.col_ptr[3 * v + j];
+            for i in j..3 {
+                if !self.fixed.is_fixed(3 * v + i) {
+                    self.values[base + i - j] += k[(i, j)];
+                }
+            }
+        }
+    }
+}
+
+fn scatter<const N: usize>(
+    elements: &[CorotElement<N>],
+    states: &ElementStates<N>,
+    ranks: &[u32],
+    scale: f64,
+    sink: &mut Sink<'_>,
+) {
+    let per = N * (N - 1) / 2;
+    for ((e, r), ranks) in elements
+        .iter()
+        .zip(&states.rotations)
+        .zip(ranks.chunks_exact(per))
+    {
+        let mut pair = 0;
+        e.warped_blocks(r, |a, b, blk| {
+            let blk = blk * scale;
+            let (p, q) = (e.nodes[a] as usize, e.nodes[b] as usize);
+            if a == b {
+                sink.add_diagonal(p, &blk);
+            } else {
+                let rank = ranks[pair] as usize;
+                pair += 1;
+                if p > q {
+                    sink.add_off_diagonal(p, q, rank, &blk);
+                } else {
+                    sink.add_off_diagonal(q, p, rank, &blk.transpose());
+                }
+            }
+        });
+    }
+}

@@ -1,0 +1,86 @@
+//! The corotated constant-strain element shared by tetrahedra and membrane triangles.
+//!
+//! Rest data are the shape-function gradients g_a (1/mm, world rest frame), a measure w (the
+//! volume V for a tetrahedron, h·A for a membrane, mm³), the Lamé pair and the rest unit normal
+//! N (zero for a tetrahedron, so that the in-plane projector P = I − N Nᵀ is the identity).
+//! Linear stiffness blocks (Voigt form K_e = w·BᵀDB, mechanics-metrics §4.1/§4.3, written per
+//! node pair): K_ab = w(λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) P).
+//! Corotation (Müller & Gross 2004; Nesme et al. 2005): with element rotation R,
+//! f = −R K (Rᵀx − X). Using F = Σ x_a g_aᵀ and Σ X_a g_aᵀ = P this is the stress form
+//! H = RᵀF − P, ε = P sym(H) P, σ = λ tr(ε) P + 2μ ε, f_a = −w R σ g_a; the warped tangent is
+//! R K_ab Rᵀ = w(λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a·g_b)(I − n̂ n̂ᵀ)) with ĝ = R g, n̂ = R N.
+
+use nalgebra::{Matrix3, Point3, Vector3};
+
+use super::material::Lame;
+
+/// Rest data of one corotated constant-strain element with `N` nodes.
+#[derive(Debug, Clone)]
+pub(crate) struct CorotElement<const N: usize> {
+    pub nodes: [u32; N],
+    pub grads: [Vector3<f64>; N],
+    pub measure: f64,
+    pub lame: Lame,
+    pub rest_normal: Vector3<f64>,
+}
+
+impl<const N: usize> CorotElement<N> {
+    /// Deformation gradient F = Σ x_a g_aᵀ (maps the rest plane only, for a membrane).
+    pub fn deformation(&self, x: &[Point3<f64>]) -> Matrix3<f64> {
+        let mut f = Matrix3::zeros();
+        for (node, g) in self.nodes.iter().zip(&self.grads) {
+            f += x[*node as usize].coords * g.transpose();
+        }
+        f
+    }
+
+    fn projector(&self) -> Matrix3<f64> {
+        Matrix3::identity() - self.rest_normal * self.rest_normal.transpose()
+    }
+
+    /// Corotated elastic nodal forces (µN) for rotation `r` and deformation gradient `f`.
+    pub fn forces(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> [Vector3<f64>; N] {
+        let p = self.projector();
+        let h = r.transpose() * f - p;
+        let eps = p * (h + h.transpose()) * p * 0.5;
+        let sigma = p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu);
+        let rs = r * sigma * (-self.measure);
+        self.grads.map(|g| rs * g)
+    }
+
+    /// Visits the warped stiffness blocks R K_ab Rᵀ (µN/mm, rows of node a, columns of node
+    /// b) for every local pair a ≤ b, in the order (0,0), (0,1), …, (0,N−1), (1,1), ….
+    pub fn warped_blocks(
+        &self,
+        r: &Matrix3<f64>,
+        mut visit: impl FnMut(usize, usize, Matrix3<f64>),
+    ) {
+        let g = self.grads.map(|g| r * g);
+        let n = r * self.rest_normal;
+        let plane = (Matrix3::identity() - n * n.transpose()) * self.lame.mu;
+        let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.measure);
+        for a in 0..N {
+            for b in a..N {
+                let dot = self.grads[a].dot(&self.grads[b]);
+                let blk =
+                    (g[a] * g[b].transpose() * lambda + g[b] * g[a].transpose() * mu + plane * dot)
+                        * w;
+                visit(a, b, blk);
+            }
+        }
+    }
+
+    /// One warped stiffness block R K_ab Rᵀ (µN/mm); K_ba = K_abᵀ.
+    #[cfg(test)]
+    pub fn warped_block(&self, r: &Matrix3<f64>, a: usize, b: usize) -> Matrix3<f64> {
+        let mut out = Matrix3::zeros();
+        self.warped_blocks(r, |i, j, blk| {
+            if (i, j) == (a, b) {
+                out = blk;
+            } else if (j, i) == (a, b) {
+                out = blk.transpose();
+            }
+        });
+        out
+    }
+}

@@ -1,0 +1,180 @@
+//! The finite-element model of one mesh: rest positions, corotated tetrahedra and membrane
+//! triangles with their materials, and the lumped nodal masses.
+//!
+//! Inputs are plain slices so the model depends on no other otoatlas module. Lumped mass
+//! (SOFA DiagonalMass with vertexMass, mechanics-metrics §2.4): m_v = Σ_tets ρV/4 + Σ_tris ρhA/3,
+//! in g.
+
+use nalgebra::Point3;
+
+use super::element::CorotElement;
+use super::error::FemError;
+use super::material::{MembraneMaterial, TetMaterial};
+use super::membrane::{MembraneElement, rest_membrane};
+use super::tet::{TetElement, rest_tet};
+
+/// One family of elements: node indices per cell, a material index per cell, the materials.
+#[derive(Debug, Clone, Copy)]
+pub struct Elements<'a, const N: usize, M> {
+    /// Node indices of each cell (into the rest positions).
+    pub cells: &'a [[u32; N]],
+    /// Index into `materials` for each cell.
+    pub material_index: &'a [u32],
+    /// The materials, validated when the model is built.
+    pub materials: &'a [M],
+}
+
+impl<const N: usize, M> Elements<'_, N, M> {
+    /// No elements of this family.
+    pub const fn none() -> Self {
+        Elements {
+            cells: &[],
+            material_index: &[],
+            materials: &[],
+        }
+    }
+}
+
+/// Tetrahedra (4 nodes) with solid materials.
+pub type TetElements<'a> = Elements<'a, 4, TetMaterial>;
+/// Membrane triangles (3 nodes) with membrane materials.
+pub type MembraneElements<'a> = Elements<'a, 3, MembraneMaterial>;
+
+/// A corotational linear FEM model (mm, g, s; forces in µN, moduli in Pa).
+#[derive(Debug, Clone)]
+pub struct FemModel {
+    rest: Vec<Point3<f64>>,
+    pub(crate) tets: Vec<TetElement>,
+    pub(crate) membranes: Vec<MembraneElement>,
+    masses: Vec<f64>,
+}
+
+fn build<const N: usize, M>(
+    kind: &'static str,
+    rest: &[Point3<f64>],
+    set: &Elements<'_, N, M>,
+    validate: impl Fn(&M, usize) -> Result<(), FemError>,
+    make: impl Fn(usize, [u32; N], &M) -> Result<CorotElement<N>, FemError>,
+) -> Result<Vec<CorotElement<N>>, FemError> {
+    if set.material_index.len() != set.cells.len() {
+        return Err(FemError::LengthMismatch {
+            what: kind,
+            expected: set.cells.len(),
+            found: set.material_index.len(),
+        });
+    }
+    for (i, m) in set.materials.iter().enumerate() {
+        validate(m, i)?;
+    }
+    let mut out = Vec::with_capacity(set.cells.len());
+    for (e, (cell, &mi)) in set.cells.iter().zip(set.material_index).enumerate() {
+        for (a, &node) in cell.iter().enumerate() {
+            if node as usize >= rest.len() {
+                return Err(FemError::NodeOutOfRange {
+                    kind,
+                    element: e,
+                    node,
+                    n_nodes: rest.len(),
+                });
+            }
+            if cell[..a].contains(&node) {
+                return Err(FemError::RepeatedNode {
+                    kind,
+                    element: e,
+                    node,
+                });
+            }
+        }
+        let mat = set
+            .materials
+            .get(mi as usize)
+            .ok_or(FemError::MaterialOutOfRange {
+                kind,
+                element: e,
+                index: mi,
+                n_materials: set.materials.len(),
+            })?;
+        out.push(make(e, *cell, mat)?);
+    }
+    Ok(out)
+}
+
+impl FemModel {
+    /// Builds the model; checks finite positions, node and material indices, materials, and
+    /// non-degenerate rest elements (either orientation of a tetrahedron is accepted).
+    pub fn new(
+        rest: &[Point3<f64>],
+        tets: TetElements<'_>,
+        membranes: MembraneElements<'_>,
+    ) -> Result<Self, FemError> {
+        if let Some(i) = rest
+            .iter()
+            .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+        {
+            return Err(FemError::NonFinite {
+                what: "rest position",
+                index: i,
+            });
+        }
+        let tet_elems = build(
+            "tetrahedron",
+            rest,
+            &tets,
+            TetMaterial::validate,
+            |e, c, m| rest_tet(e, c, rest, m),
+        )?;
+        let tri_elems = build(
+            "membrane triangle",
+            rest,
+            &membranes,
+            MembraneMaterial::validate,
+            |e, c, m| rest_membrane(e, c, rest, m),
+        )?;
+        let mut masses = vec![0.0; rest.len()];
+        for (t, &mi) in tet_elems.iter().zip(tets.material_index) {
+            let m = tets.materials[mi as usize].density * t.measure / 4.0;
+            t.nodes.iter().for_each(|&n| masses[n as usize] += m);
+        }
+        for (t, &mi) in tri_elems.iter().zip(membranes.material_index) {
+            // measure = h·A, so ρ·measure/3 = ρhA/3.
+            let m = membranes.materials[mi as usize].density * t.measure / 3.0;
+            t.nodes.iter().for_each(|&n| masses[n as usize] += m);
+        }
+        Ok(FemModel {
+            rest: rest.to_vec(),
+            tets: tet_elems,
+            membranes: tri_elems,
+            masses,
+        })
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Number of degrees of freedom (3 per node, ordered x, y, z per node).
+    pub fn dof_count(&self) -> usize {
+        3 * self.rest.len()
+    }
+
+    /// Number of tetrahedra.
+    pub fn tet_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Number of membrane triangles.
+    pub fn membrane_count(&self) -> usize {
+        self.membranes.len()
+    }
+
+    /// Rest positions (mm).
+    pub fn rest_positions(&self) -> &[Point3<f64>] {
+        &self.rest
+    }
+
+    /// Lumped nodal masses (g): ρV/4 per tetrahedron node plus ρhA/3 per triangle node.
+    pub fn lumped_masses(&self) -> &[f64] {
+        &self.masses
+    }
+}

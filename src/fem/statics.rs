@@ -1,0 +1,297 @@
+//! Quasi-static equilibrium of corotational elasticity plus zero-rest-length springs and nodal
+//! forces, by Newton-like iterations on the warped tangent (SOFA StaticSolver with the
+//! TetrahedronFEMForceField tangent R K Rᵀ, no dR/dx term; mechanics-metrics §2.2, §4.2).
+//!
+//! Each iteration at positions x: residual r = f_el(x) + Σ k (p − x_node) + f_ext, tangent
+//! A = K'(x) + Σ k I (spring nodes) + shift·I (optional), fixed DOFs projected out; assemble,
+//! factorise numerically with the reused symbolic analysis, solve A Δx = r. Inversion guard:
+//! the step x + αΔx starts at α = 1 and is halved while any tetrahedron would invert
+//! (det F ≤ 0) or any membrane triangle collapse; no returned state holds such an element.
+//! Convergence: a full step (α = 1) whose largest nodal update |Δx_v| (mm) is below
+//! `tolerance_mm`; a halved step never counts as converged.
+
+use nalgebra::{Point3, Vector3};
+
+use super::assembly::SparsePattern;
+use super::cholesky::SparseCholesky;
+use super::error::FemError;
+use super::fixed::FixedDofs;
+use super::model::FemModel;
+use super::state::CorotationalState;
+
+/// A zero-rest-length spring pulling `node` towards `target` (mm) with `stiffness` (µN/mm):
+/// force k (target − x_node).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spring {
+    pub node: u32,
+    pub target: Point3<f64>,
+    pub stiffness: f64,
+}
+
+/// The loads of a static problem.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StaticLoads<'a> {
+    /// Zero-rest-length springs.
+    pub springs: &'a [Spring],
+    /// Constant nodal forces (µN), one per node, if any.
+    pub nodal_forces: Option<&'a [Vector3<f64>]>,
+}
+
+/// Iteration controls of the static solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticOptions {
+    /// Converged when the largest nodal update of an iteration is below this (mm).
+    pub tolerance_mm: f64,
+    /// Iteration limit; exceeding it is `FemError::NotConverged`.
+    pub max_iterations: usize,
+    /// Step halvings allowed per iteration by the inversion guard.
+    pub max_halvings: usize,
+    /// Levenberg-style shift (µN/mm) added to the tangent diagonal of every free DOF, not to
+    /// the residual: the equilibrium is unchanged, only the path (convergence slows as the
+    /// shift grows; check `StaticReport::max_residual`). The warped tangent has no stress
+    /// (geometric) stiffness, so flat membrane regions without springs are singular out of
+    /// plane; a shift above the membrane tension σh there keeps the iteration definite and
+    /// stable. (A membrane in compression has no flat equilibrium at all: it wrinkles.)
+    pub tangent_shift: f64,
+}
+
+impl Default for StaticOptions {
+    fn default() -> Self {
+        StaticOptions {
+            tolerance_mm: 1e-6,
+            max_iterations: 100,
+            max_halvings: 30,
+            tangent_shift: 0.0,
+        }
+    }
+}
+
+/// What a converged static solve did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticReport {
+    /// Newton-like iterations done (assemble + factorise + solve each).
+    pub iterations: usize,
+    /// Largest nodal update of the last iteration (mm).
+    pub max_update_mm: f64,
+    /// Total step halvings forced by the inversion guard.
+    pub halvings: usize,
+    /// Largest nodal out-of-balance force over free DOFs at the returned state (µN).
+    pub max_residual: f64,
+}
+
+/// Static solver for one model and one set of fixed DOFs: the pattern and the symbolic
+/// factorisation are built once here and reused by every solve.
+#[derive(Debug)]
+pub struct StaticSolver<'m> {
+    model: &'m FemModel,
+    fixed: FixedDofs,
+    pattern: SparsePattern,
+    values: Vec<f64>,
+    cholesky: SparseCholesky,
+    state: CorotationalState,
+    forces: Vec<Vector3<f64>>,
+    rhs: Vec<f64>,
+    trial: Vec<Point3<f64>>,
+    tangent_diagonal: Vec<f64>,
+}
+
+impl<'m> StaticSolver<'m> {
+    /// A solver with the given fixed DOFs (see `FixedDofs::from_nodes`).
+    pub fn new(model: &'m FemModel, fixed: FixedDofs) -> Result<Self, FemError> {
+        if fixed.len() != model.dof_count() {
+            return Err(FemError::LengthMismatch {
+                what: "fixed DOF mask",
+                expected: model.dof_count(),
+                found: fixed.len(),
+            });
+        }
+        let pattern = SparsePattern::new(model);
+        let cholesky = SparseCholesky::analyse(&pattern)?;
+        Ok(StaticSolver {
+            model,
+            fixed,
+            values: pattern.zero_values(),
+            pattern,
+            cholesky,
+            state: CorotationalState::new(model),
+            forces: vec![Vector3::zeros(); model.node_count()],
+            rhs: vec![0.0; model.dof_count()],
+            trial: Vec::with_capacity(model.node_count()),
+            tangent_diagonal: vec![0.0; model.node_count()],
+        })
+    }
+
+    /// Equilibrium under springs only; see `solve`.
+    pub fn solve_with_springs(
+        &mut self,
+        x: &mut [Point3<f64>],
+        springs: &[Spring],
+        options: &StaticOptions,
+    ) -> Result<StaticReport, FemError> {
+        let loads = StaticLoads {
+            springs,
+            nodal_forces: None,
+        };
+        self.solve(x, &loads, options)
+    }
+
+    /// Moves the free DOFs of `x` (mm; fixed DOFs keep their given values) to the equilibrium
+    /// of elasticity and `loads`. `x` must hold no inverted element. On `NotConverged` or
+    /// `StepRejected`, `x` holds the last admissible iterate.
+    pub fn solve(
+        &mut self,
+        x: &mut [Point3<f64>],
+        loads: &StaticLoads<'_>,
+        options: &StaticOptions,
+    ) -> Result<StaticReport, FemError> {
+        self.check(loads, options)?;
+        self.tangent_diagonal.fill(options.tangent_shift);
+        for s in loads.springs {
+            self.tangent_diagonal[s.node as usize] += s.stiffness;
+        }
+        self.state.update(self.model, x)?;
+        if let Some(&first) = self.state.failed_elements().first() {
+            return Err(FemError::InvertedState {
+                count: self.state.failed_elements().len(),
+                first,
+            });
+        }
+        let mut halvings = 0;
+        let mut max_update = f64::INFINITY;
+        for iteration in 1..=options.max_iterations {
+            self.residual(x, loads)?;
+            self.pattern.assemble(
+                self.model,
+                &self.state,
+                1.0,
+                Some(&self.tangent_diagonal),
+                &self.fixed,
+                &mut self.values,
+            )?;
+            self.cholesky.factorise(self.pattern.matrix(&self.values))?;
+            self.cholesky.solve_in_place(&mut self.rhs)?;
+            let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
+            halvings += h;
+            max_update = step;
+            if h == 0 && max_update < options.tolerance_mm {
+                self.residual(x, loads)?;
+                let max_residual = self
+                    .rhs
+                    .chunks_exact(3)
+                    .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
+                    .fold(0.0, f64::max);
+                return Ok(StaticReport {
+                    iterations: iteration,
+                    max_update_mm: max_update,
+                    halvings,
+                    max_residual,
+                });
+            }
+        }
+        Err(FemError::NotConverged {
+            iterations: options.max_iterations,
+            max_update,
+            tolerance: options.tolerance_mm,
+        })
+    }
+
+    fn check(&self, loads: &StaticLoads<'_>, options: &StaticOptions) -> Result<(), FemError> {
+        let n = self.model.node_count();
+        for s in loads.springs {
+            if s.node as usize >= n {
+                return Err(FemError::BadNodeReference {
+                    what: "spring",
+                    node: s.node,
+                    n_nodes: n,
+                });
+            }
+            let finite = s.target.coords.iter().all(|c| c.is_finite());
+            if !(finite && s.stiffness.is_finite() && s.stiffness >= 0.0) {
+                return Err(FemError::InvalidParameter {
+                    what: "spring stiffness (µN/mm) or target (mm)",
+                    value: s.stiffness,
+                    expected: "finite target and stiffness >= 0",
+                });
+            }
+        }
+        if let Some(f) = loads.nodal_forces
+            && f.len() != n
+        {
+            return Err(FemError::LengthMismatch {
+                what: "nodal forces",
+                expected: n,
+                found: f.len(),
+            });
+        }
+        if !(options.tangent_shift >= 0.0 && options.tangent_shift.is_finite()) {
+            return Err(FemError::InvalidParameter {
+                what: "tangent_shift (µN/mm)",
+                value: options.tangent_shift,
+                expected: "finite and >= 0",
+            });
+        }
+        if !(options.tolerance_mm > 0.0 && options.tolerance_mm.is_finite()) {
+            return Err(FemError::InvalidParameter {
+                what: "tolerance_mm",
+                value: options.tolerance_mm,
+                expected: "a finite tolerance > 0 mm",
+            });
+        }
+        Ok(())
+    }
+
+    /// Writes the out-of-balance force at `x` (state already updated to `x`) into `rhs`,
+    /// zero on fixed DOFs.
+    fn residual(&mut self, x: &[Point3<f64>], loads: &StaticLoads<'_>) -> Result<(), FemError> {
+        self.forces.fill(Vector3::zeros());
+        self.state
+            .add_elastic_forces(self.model, &mut self.forces)?;
+        for s in loads.springs {
+            let v = s.node as usize;
+            self.forces[v] += (s.target - x[v]) * s.stiffness;
+        }
+        if let Some(f) = loads.nodal_forces {
+            self.forces.iter_mut().zip(f).for_each(|(a, b)| *a += b);
+        }
+        for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
+            r.copy_from_slice(f.as_slice());
+        }
+        self.fixed.zero_fixed(&mut self.rhs);
+        Ok(())
+    }
+
+    /// Applies x += αΔx (Δx in `rhs`) with the largest α = 2⁻ᵏ that keeps every element
+    /// admissible; leaves `state` at the new x. Returns (largest nodal update, halvings).
+    fn guarded_step(
+        &mut self,
+        x: &mut [Point3<f64>],
+        iteration: usize,
+        max_halvings: usize,
+    ) -> Result<(f64, usize), FemError> {
+        let mut alpha = 1.0;
+        for halvings in 0..=max_halvings {
+            self.trial.clear();
+            self.trial.extend(
+                x.iter()
+                    .zip(self.rhs.chunks_exact(3))
+                    .map(|(p, d)| p + Vector3::new(d[0], d[1], d[2]) * alpha),
+            );
+            self.state.update(self.model, &self.trial)?;
+            if self.state.failed_elements().is_empty() {
+                x.copy_from_slice(&self.trial);
+                let largest = self
+                    .rhs
+                    .chunks_exact(3)
+                    .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
+                    .fold(0.0, f64::max);
+                return Ok((largest, halvings));
+            }
+            alpha *= 0.5;
+        }
+        self.state.update(self.model, x)?;
+        Err(FemError::StepRejected {
+            iteration,
+            halvings: max_halvings,
+        })
+    }
+}
