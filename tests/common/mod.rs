@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod meshes;
+#[allow(unused_imports)]
 pub use meshes::*;
 
 use std::path::PathBuf;
