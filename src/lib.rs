@@ -15,5 +15,6 @@ pub mod phantom;
 pub mod pipeline;
 pub mod progress;
 pub mod register;
+pub mod report;
 
 pub use error::{Error, ExitStatus};
