@@ -1,6 +1,7 @@
 //! Registration of the atlas onto a patient: landmarks, the ear's side, the rigid (Kabsch /
 //! Umeyama) alignment, and (later) the deformable stage.
 
+pub mod deform;
 pub mod landmarks;
 pub mod rigid;
 pub mod side;

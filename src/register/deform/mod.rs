@@ -1,0 +1,278 @@
+//! The deformable stage (the source study's method, section 3): from each atlas surface
+//! triangle, probe the image along its normal for the bone boundary; spring each surface node
+//! towards where its triangles found it; let the atlas FEM regularise; repeat, with new border
+//! points each iteration, until the nodes stop moving.
+//!
+//! Where this departs from the study, and why:
+//! - A node's target is its own position plus the area-weighted mean *displacement* its
+//!   triangles found, not the barycentre of their border points: the barycentre of points near
+//!   the triangles' centres pulls every node of a curved surface inwards by about the
+//!   curvature times the squared edge length, a bias of the order of the accuracy sought.
+//! - Border points are screened: the bone side of an edge must be bone-like, and a triangle
+//!   whose offset disagrees with the median of its neighbours' by more than a tolerance (a
+//!   cavity wall, the otic capsule, noise) is dropped for that iteration.
+//! - The FEM keeps the atlas's stiffness ratios between regions but is scaled so that bone has
+//!   the registration modulus `regularisation_modulus_pa`: with the real 1.41e10 Pa no spring
+//!   of sensible stiffness could move anything. Springs have stiffness per unit surface area.
+//! - The static solver never accepts an inverted element: if no admissible step exists the
+//!   stage stops at the last valid state and says so.
+
+mod probe;
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
+use crate::image::Sampler;
+use crate::progress::Progress;
+pub use probe::{Border, ProbeConfig, ProbeKind, probe};
+
+/// Knobs of the deformable stage (`[deform]` in pipeline.toml).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeformConfig {
+    #[serde(flatten)]
+    pub probe: ProbeConfig,
+    /// Young's modulus given to bone during registration; other regions keep their ratio to
+    /// bone [Pa].
+    pub regularisation_modulus_pa: f64,
+    /// Spring stiffness per unit of surface area of a node [µN/mm per mm²].
+    pub spring_stiffness_per_area: f64,
+    /// A triangle's offset may differ from the median of its neighbours' by this much [mm].
+    pub neighbour_tolerance_mm: f64,
+    /// Converged when the largest nodal update of an iteration is below this [mm].
+    pub tolerance_mm: f64,
+    /// Iteration limit of the outer loop [count].
+    pub max_iterations: usize,
+}
+
+/// A surface triangle to probe: three FEM nodes (counter-clockwise seen from outside).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeTriangle {
+    pub nodes: [u32; 3],
+    pub kind: ProbeKind,
+}
+
+/// One outer iteration, for the convergence history.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IterationStats {
+    pub iteration: usize,
+    /// Triangles whose probe found a boundary.
+    pub borders_found: usize,
+    /// Of those, kept after screening.
+    pub borders_used: usize,
+    /// Mean |offset| of the kept border points [mm].
+    pub mean_offset_mm: f64,
+    /// Largest nodal update of the FEM solve [mm].
+    pub max_update_mm: f64,
+}
+
+/// How the stage ended.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum DeformStatus {
+    Converged,
+    MaxIterations,
+    /// No admissible (non-inverting) step existed; the last valid state is returned.
+    InversionGuard {
+        message: String,
+    },
+}
+
+/// The result of the deformable stage.
+#[derive(Debug, Clone)]
+pub struct DeformResult {
+    pub positions: Vec<Point3<f64>>,
+    pub history: Vec<IterationStats>,
+    pub status: DeformStatus,
+}
+
+/// Errors that stop the deformable stage before it starts.
+#[derive(Debug, thiserror::Error)]
+pub enum DeformError {
+    #[error("deformable registration: {0}")]
+    Fem(#[from] FemError),
+    #[error(
+        "deformable registration: no boundary found in the image around the atlas surface (is the image of the same ear, and are the landmarks right?)"
+    )]
+    NothingFound,
+}
+
+/// Runs the stage on `model`, whose rest shape is the rigidly placed atlas; returns the
+/// registered node positions. `step` is the probe step (the smallest voxel spacing, mm).
+pub fn deform(
+    model: &FemModel,
+    probes: &[ProbeTriangle],
+    sampler: &Sampler,
+    step: f64,
+    cfg: &DeformConfig,
+) -> Result<DeformResult, DeformError> {
+    let n = model.node_count();
+    let mut x: Vec<Point3<f64>> = model.rest_positions().to_vec();
+    let mut solver = StaticSolver::new(model, FixedDofs::from_nodes(n, &[])?)?;
+    let neighbours = triangle_neighbours(probes, n);
+    let mut history = Vec::new();
+    let bar = Progress::new("deform", cfg.max_iterations as u64);
+    let options = StaticOptions {
+        tolerance_mm: cfg.tolerance_mm * 0.5,
+        max_iterations: 4,
+        max_halvings: 12,
+        // keeps each linear solve definite where no spring acts (see StaticOptions)
+        tangent_shift: 1e-6 * cfg.regularisation_modulus_pa,
+    };
+    let mut status = DeformStatus::MaxIterations;
+    for iteration in 1..=cfg.max_iterations {
+        let borders: Vec<Option<(Border, f64)>> = probes
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.nodes.map(|k| x[k as usize]);
+                let cross = (b - a).cross(&(c - a));
+                let area = 0.5 * cross.norm();
+                if area <= 0.0 {
+                    return None;
+                }
+                let centre = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+                probe(
+                    sampler,
+                    &centre,
+                    &(cross / (2.0 * area)),
+                    t.kind,
+                    step,
+                    &cfg.probe,
+                )
+                .map(|bd| (bd, area))
+            })
+            .collect();
+        let found = borders.iter().filter(|b| b.is_some()).count();
+        if iteration == 1 && found == 0 {
+            return Err(DeformError::NothingFound);
+        }
+        let kept = screen(&borders, &neighbours, cfg.neighbour_tolerance_mm);
+        let springs = node_springs(probes, &borders, &kept, &x, cfg.spring_stiffness_per_area);
+        let used = kept.iter().filter(|k| **k).count();
+        let mean_offset = borders
+            .iter()
+            .zip(&kept)
+            .filter_map(|(b, k)| b.filter(|_| *k).map(|(bd, _)| bd.offset_mm.abs()))
+            .sum::<f64>()
+            / used.max(1) as f64;
+        let before = x.clone();
+        let outcome = solver.solve_with_springs(&mut x, &springs, &options);
+        let max_update = x
+            .iter()
+            .zip(&before)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max);
+        history.push(IterationStats {
+            iteration,
+            borders_found: found,
+            borders_used: used,
+            mean_offset_mm: mean_offset,
+            max_update_mm: max_update,
+        });
+        bar.inc(1);
+        match outcome {
+            Ok(_) | Err(FemError::NotConverged { .. }) => {}
+            Err(e @ FemError::StepRejected { .. }) => {
+                status = DeformStatus::InversionGuard {
+                    message: e.to_string(),
+                };
+                break;
+            }
+            Err(e) => return Err(e.into()),
+        }
+        if max_update < cfg.tolerance_mm {
+            status = DeformStatus::Converged;
+            break;
+        }
+    }
+    bar.finish(format!("{} iterations, {:?}", history.len(), status));
+    Ok(DeformResult {
+        positions: x,
+        history,
+        status,
+    })
+}
+
+/// For each probe triangle, the probe triangles sharing a node with it.
+fn triangle_neighbours(probes: &[ProbeTriangle], node_count: usize) -> Vec<Vec<u32>> {
+    let mut by_node: Vec<Vec<u32>> = vec![Vec::new(); node_count];
+    for (t, tri) in probes.iter().enumerate() {
+        for k in tri.nodes {
+            by_node[k as usize].push(t as u32);
+        }
+    }
+    probes
+        .iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            let mut nb: Vec<u32> = tri
+                .nodes
+                .iter()
+                .flat_map(|k| by_node[*k as usize].iter().copied())
+                .filter(|&o| o as usize != t)
+                .collect();
+            nb.sort_unstable();
+            nb.dedup();
+            nb
+        })
+        .collect()
+}
+
+/// Keeps a border point when its offset is within `tolerance` of the median offset of the
+/// neighbours that found one (isolated finds, with no neighbour to agree, are kept).
+fn screen(borders: &[Option<(Border, f64)>], neighbours: &[Vec<u32>], tolerance: f64) -> Vec<bool> {
+    borders
+        .par_iter()
+        .enumerate()
+        .map(|(t, b)| {
+            let Some((bd, _)) = b else { return false };
+            let mut offs: Vec<f64> = neighbours[t]
+                .iter()
+                .filter_map(|&o| borders[o as usize].map(|(nb, _)| nb.offset_mm))
+                .collect();
+            if offs.is_empty() {
+                return true;
+            }
+            offs.sort_by(f64::total_cmp);
+            let median = offs[offs.len() / 2];
+            (bd.offset_mm - median).abs() <= tolerance
+        })
+        .collect()
+}
+
+/// One spring per node that has kept border points around it: target = position + the
+/// area-weighted mean displacement of its triangles; stiffness = per-area stiffness x a third
+/// of the area of those triangles.
+fn node_springs(
+    probes: &[ProbeTriangle],
+    borders: &[Option<(Border, f64)>],
+    kept: &[bool],
+    x: &[Point3<f64>],
+    stiffness_per_area: f64,
+) -> Vec<Spring> {
+    let n = x.len();
+    let mut sum = vec![Vector3::zeros(); n];
+    let mut weight = vec![0.0f64; n];
+    for ((tri, b), k) in probes.iter().zip(borders).zip(kept) {
+        let (Some((bd, area)), true) = (b, *k) else {
+            continue;
+        };
+        let [a, bb, c] = tri.nodes.map(|i| x[i as usize]);
+        let centre = (a.coords + bb.coords + c.coords) / 3.0;
+        let displacement = bd.point.coords - centre;
+        for node in tri.nodes {
+            sum[node as usize] += displacement * *area;
+            weight[node as usize] += *area;
+        }
+    }
+    (0..n)
+        .filter(|&k| weight[k] > 0.0)
+        .map(|k| Spring {
+            node: k as u32,
+            target: x[k] + sum[k] / weight[k],
+            stiffness: stiffness_per_area * weight[k] / 3.0,
+        })
+        .collect()
+}
