@@ -2,6 +2,7 @@
 //! consumes, and mesh file formats.
 
 pub mod domain;
+pub mod shapes;
 pub mod surface;
 
 pub use domain::LabelledDomain;
