@@ -10,6 +10,7 @@ pub mod error;
 pub mod image;
 pub mod io_util;
 pub mod mesh;
+pub mod meshdev;
 pub mod progress;
 
 pub use error::{Error, ExitStatus};

@@ -99,9 +99,9 @@ pub fn box_mesh(min: Point3<f64>, max: Point3<f64>, divisions: usize) -> TriMesh
             lattice[u] = i;
             lattice[v] = j;
             *index.entry(lattice).or_insert_with(|| {
-                let coord =
-                    |k: usize| min[k] + (max[k] - min[k]) * lattice[k] as f64 / n as f64;
-                mesh.vertices.push(Point3::new(coord(0), coord(1), coord(2)));
+                let coord = |k: usize| min[k] + (max[k] - min[k]) * lattice[k] as f64 / n as f64;
+                mesh.vertices
+                    .push(Point3::new(coord(0), coord(1), coord(2)));
                 (mesh.vertices.len() - 1) as u32
             })
         };
