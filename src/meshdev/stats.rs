@@ -72,13 +72,13 @@ pub fn weighted_percentile(sorted: &[(f64, f64)], fraction: f64) -> f64 {
     f64::NAN
 }
 
-/// Area-weighted mean of `values`.
+/// Area-weighted mean of `values` (summed sequentially, so the result does not depend on
+/// the thread count).
 pub fn weighted_mean(values: &[f64], weights: &[f64]) -> f64 {
     let (sum, total) = values
-        .par_iter()
+        .iter()
         .zip(weights)
-        .map(|(v, w)| (v * w, *w))
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .fold((0.0, 0.0), |a, (v, w)| (a.0 + v * w, a.1 + w));
     sum / total
 }
 
@@ -90,7 +90,8 @@ pub fn directed(distances: &[f64], weights: &[f64], tolerance: f64) -> Directed 
         .copied()
         .zip(weights.iter().copied())
         .collect();
-    sorted.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    // Ties broken by weight: identical inputs give identical sums whatever the thread count.
+    sorted.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     let (mut area, mut sum, mut sum2, mut within) = (0.0, 0.0, 0.0, 0.0);
     for &(d, w) in &sorted {
         area += w;
@@ -122,11 +123,8 @@ pub fn symmetric(
 ) -> SurfaceDistances {
     let (a, b) = (&test_to_ref, &ref_to_test);
     let area = a.area_mm2 + b.area_mm2;
-    let meshdev_mean = vertex_distances.par_iter().sum::<f64>() / vertex_distances.len() as f64;
-    let meshdev_max = vertex_distances
-        .par_iter()
-        .copied()
-        .reduce(|| f64::NAN, f64::max);
+    let meshdev_mean = vertex_distances.iter().sum::<f64>() / vertex_distances.len() as f64;
+    let meshdev_max = vertex_distances.iter().copied().fold(f64::NAN, f64::max);
     SurfaceDistances {
         masd: 0.5 * (a.mean + b.mean),
         assd: (a.mean * a.area_mm2 + b.mean * b.area_mm2) / area,
