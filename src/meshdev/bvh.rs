@@ -12,6 +12,7 @@
 //! the module documentation of `meshdev` for the figures.
 
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 use super::closest::{Feature, closest_point_on_triangle};
 use super::error::MeshDevError;
@@ -21,6 +22,8 @@ const LEAF_SIZE: usize = 4;
 const BINS: usize = 16;
 const MEDIAN_DEPTH: usize = 40;
 const STACK: usize = 128;
+/// Subtrees with at least this many triangles build their halves in parallel.
+const PARALLEL_BUILD: usize = 4096;
 
 /// The closest point of a surface to a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,172 +103,212 @@ fn half_area(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
     x * y + y * z + z * x
 }
 
-fn empty_box() -> ([f64; 3], [f64; 3]) {
+fn empty_box() -> Aabb {
     ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3])
 }
 
-fn grow(b: &mut ([f64; 3], [f64; 3]), lo: &[f64; 3], hi: &[f64; 3]) {
+fn grow(b: &mut Aabb, lo: &[f64; 3], hi: &[f64; 3]) {
     for k in 0..3 {
         b.0[k] = b.0[k].min(lo[k]);
         b.1[k] = b.1[k].max(hi[k]);
     }
 }
 
-struct Builder<'a> {
-    boxes: &'a [([f64; 3], [f64; 3])],
-    centroids: &'a [[f64; 3]],
-    nodes: Vec<Node>,
+/// A triangle while the tree is built: its box, centroid and input index, moved with the
+/// partitions so that every pass reads memory in order.
+#[derive(Debug, Clone, Copy)]
+struct Item {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    centroid: [f64; 3],
+    id: u32,
 }
 
-impl Builder<'_> {
-    /// Fills node `index` for triangle slots `first..first + items.len()`.
-    fn build(&mut self, index: usize, items: &mut [u32], first: usize, depth: usize) {
-        let mut bounds = empty_box();
-        let mut cbounds = empty_box();
-        for &t in items.iter() {
-            let (lo, hi) = &self.boxes[t as usize];
-            grow(&mut bounds, lo, hi);
-            let c = &self.centroids[t as usize];
-            grow(&mut cbounds, c, c);
-        }
-        let leaf = Node {
-            lo: bounds.0,
-            hi: bounds.1,
-            first: first as u32,
-            count: items.len() as u32,
-        };
-        self.nodes[index] = leaf;
-        if items.len() <= LEAF_SIZE {
-            return;
-        }
-        let split = if depth < MEDIAN_DEPTH {
-            self.sah_split(items, &cbounds)
-        } else {
-            None
-        }
-        .or_else(|| self.median_split(items, &cbounds));
-        let Some(mid) = split else {
-            return; // all centroids coincide: keep one leaf
-        };
-        let left = self.nodes.len();
-        self.nodes.push(leaf);
-        self.nodes.push(leaf);
-        self.nodes[index].first = left as u32;
-        self.nodes[index].count = 0;
-        let (l, r) = items.split_at_mut(mid);
-        self.build(left, l, first, depth + 1);
-        self.build(left + 1, r, first + mid, depth + 1);
-    }
+type Aabb = ([f64; 3], [f64; 3]);
 
-    fn bin_of(c: f64, lo: f64, extent: f64) -> usize {
-        (((c - lo) / extent * BINS as f64) as usize).min(BINS - 1)
+/// Fills a node for `items` (triangle slots from `first`) and splits them in place: the node
+/// as a leaf, and where the left part ends if it should be split.
+fn node_and_split(items: &mut [Item], first: usize, depth: usize) -> (Node, Option<usize>) {
+    let mut bounds = empty_box();
+    let mut cbounds = empty_box();
+    for it in items.iter() {
+        grow(&mut bounds, &it.lo, &it.hi);
+        grow(&mut cbounds, &it.centroid, &it.centroid);
     }
+    let leaf = Node {
+        lo: bounds.0,
+        hi: bounds.1,
+        first: first as u32,
+        count: items.len() as u32,
+    };
+    if items.len() <= LEAF_SIZE {
+        return (leaf, None);
+    }
+    let split = if depth < MEDIAN_DEPTH {
+        sah_split(items, &cbounds)
+    } else {
+        None
+    }
+    .or_else(|| median_split(items, &cbounds)); // None: all centroids coincide, one leaf
+    (leaf, split)
+}
 
-    /// Binned SAH: the best of 3·(BINS−1) candidate planes; `None` if no plane separates.
-    fn sah_split(&self, items: &mut [u32], cb: &([f64; 3], [f64; 3])) -> Option<usize> {
-        let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins on the left)
-        for axis in 0..3 {
-            let extent = cb.1[axis] - cb.0[axis];
-            if extent <= 0.0 {
+/// Builds the subtree of `items` sequentially into `nodes[index]` and after.
+fn build_into(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], first: usize, depth: usize) {
+    let (leaf, split) = node_and_split(items, first, depth);
+    nodes[index] = leaf;
+    let Some(mid) = split else {
+        return;
+    };
+    let left = nodes.len();
+    nodes.push(leaf);
+    nodes.push(leaf);
+    nodes[index].first = left as u32;
+    nodes[index].count = 0;
+    let (l, r) = items.split_at_mut(mid);
+    build_into(nodes, left, l, first, depth + 1);
+    build_into(nodes, left + 1, r, first + mid, depth + 1);
+}
+
+/// Builds the subtree of `items` as its own node list (root first); large subtrees build
+/// their two halves in parallel and splice them: `[root, left root, right root, left rest,
+/// right rest]`, child indices shifted accordingly.
+fn build_subtree(items: &mut [Item], first: usize, depth: usize) -> Vec<Node> {
+    if items.len() < PARALLEL_BUILD {
+        let mut nodes = Vec::with_capacity(items.len() / 2 + 1);
+        nodes.push(Node {
+            lo: [0.0; 3],
+            hi: [0.0; 3],
+            first: 0,
+            count: 0,
+        });
+        build_into(&mut nodes, 0, items, first, depth);
+        return nodes;
+    }
+    let (mut root, split) = node_and_split(items, first, depth);
+    let Some(mid) = split else {
+        return vec![root];
+    };
+    let (l, r) = items.split_at_mut(mid);
+    let (left, right) = rayon::join(
+        || build_subtree(l, first, depth + 1),
+        || build_subtree(r, first + mid, depth + 1),
+    );
+    let shift = |node: &Node, by: usize| {
+        let mut n = *node;
+        if n.count == 0 {
+            n.first += by as u32;
+        }
+        n
+    };
+    let (left_by, right_by) = (2, left.len() + 1);
+    let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
+    root.first = 1;
+    root.count = 0;
+    nodes.push(root);
+    nodes.push(shift(&left[0], left_by));
+    nodes.push(shift(&right[0], right_by));
+    nodes.extend(left[1..].iter().map(|n| shift(n, left_by)));
+    nodes.extend(right[1..].iter().map(|n| shift(n, right_by)));
+    nodes
+}
+
+/// Binned SAH: the best of 3·(BINS−1) candidate planes, binned in one pass over the items;
+/// `None` if no plane separates them.
+fn sah_split(items: &mut [Item], cb: &Aabb) -> Option<usize> {
+    let mut scale = [0.0; 3];
+    for k in 0..3 {
+        let extent = cb.1[k] - cb.0[k];
+        if extent > 0.0 {
+            scale[k] = BINS as f64 / extent;
+        }
+    }
+    let bin = |c: f64, k: usize| (((c - cb.0[k]) * scale[k]) as usize).min(BINS - 1);
+    let mut counts = [[0usize; BINS]; 3];
+    let mut bins = [[empty_box(); BINS]; 3];
+    for it in items.iter() {
+        for k in 0..3 {
+            let b = bin(it.centroid[k], k);
+            counts[k][b] += 1;
+            grow(&mut bins[k][b], &it.lo, &it.hi);
+        }
+    }
+    let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins on the left)
+    for k in (0..3).filter(|&k| scale[k] > 0.0) {
+        let mut right_cost = [0.0; BINS];
+        let (mut acc, mut n) = (empty_box(), 0);
+        for b in (1..BINS).rev() {
+            grow(&mut acc, &bins[k][b].0, &bins[k][b].1);
+            n += counts[k][b];
+            right_cost[b] = half_area(&acc.0, &acc.1) * n as f64;
+        }
+        let (mut acc, mut n) = (empty_box(), 0);
+        for b in 0..BINS - 1 {
+            grow(&mut acc, &bins[k][b].0, &bins[k][b].1);
+            n += counts[k][b];
+            if n == 0 || n == items.len() {
                 continue;
             }
-            let mut counts = [0usize; BINS];
-            let mut bins = [empty_box(); BINS];
-            for &t in items.iter() {
-                let b = Self::bin_of(self.centroids[t as usize][axis], cb.0[axis], extent);
-                counts[b] += 1;
-                let (lo, hi) = &self.boxes[t as usize];
-                grow(&mut bins[b], lo, hi);
-            }
-            let mut right_cost = [0.0; BINS];
-            let (mut acc, mut n) = (empty_box(), 0);
-            for b in (1..BINS).rev() {
-                grow(&mut acc, &bins[b].0, &bins[b].1);
-                n += counts[b];
-                right_cost[b] = if n > 0 {
-                    half_area(&acc.0, &acc.1) * n as f64
-                } else {
-                    f64::NAN
-                };
-            }
-            let (mut acc, mut n) = (empty_box(), 0);
-            for b in 0..BINS - 1 {
-                grow(&mut acc, &bins[b].0, &bins[b].1);
-                n += counts[b];
-                if n == 0 || n == items.len() {
-                    continue;
-                }
-                let cost = half_area(&acc.0, &acc.1) * n as f64 + right_cost[b + 1];
-                if best.is_none_or(|(c, _, _)| cost < c) {
-                    best = Some((cost, axis, b + 1));
-                }
+            let cost = half_area(&acc.0, &acc.1) * n as f64 + right_cost[b + 1];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, k, b + 1));
             }
         }
-        let (_, axis, left_bins) = best?;
-        let (lo, extent) = (cb.0[axis], cb.1[axis] - cb.0[axis]);
-        let mut mid = 0;
-        for i in 0..items.len() {
-            if Self::bin_of(self.centroids[items[i] as usize][axis], lo, extent) < left_bins {
-                items.swap(i, mid);
-                mid += 1;
-            }
-        }
-        Some(mid)
     }
+    let (_, k, left_bins) = best?;
+    let mut mid = 0;
+    for i in 0..items.len() {
+        if bin(items[i].centroid[k], k) < left_bins {
+            items.swap(i, mid);
+            mid += 1;
+        }
+    }
+    Some(mid)
+}
 
-    /// Halves the items by centroid along the longest centroid extent.
-    fn median_split(&self, items: &mut [u32], cb: &([f64; 3], [f64; 3])) -> Option<usize> {
-        let axis = (0..3)
-            .max_by(|&a, &b| (cb.1[a] - cb.0[a]).total_cmp(&(cb.1[b] - cb.0[b])))
-            .unwrap_or(0);
-        if cb.1[axis] - cb.0[axis] <= 0.0 {
-            return None;
-        }
-        let mid = items.len() / 2;
-        items.select_nth_unstable_by(mid, |&a, &b| {
-            self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis])
-        });
-        Some(mid)
+/// Halves the items by centroid along the longest centroid extent.
+fn median_split(items: &mut [Item], cb: &Aabb) -> Option<usize> {
+    let axis = (0..3)
+        .max_by(|&a, &b| (cb.1[a] - cb.0[a]).total_cmp(&(cb.1[b] - cb.0[b])))
+        .unwrap_or(0);
+    if cb.1[axis] - cb.0[axis] <= 0.0 {
+        return None;
     }
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    Some(mid)
 }
 
 impl Bvh {
     /// Builds the index over `mesh`; `role` names the mesh in errors ("test", "reference").
     pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, MeshDevError> {
         validate_mesh(mesh, role)?;
-        let n = mesh.triangles.len();
-        let mut boxes = Vec::with_capacity(n);
-        let mut centroids = Vec::with_capacity(n);
-        for t in 0..n {
-            let c = mesh.corners(t);
-            let mut b = empty_box();
-            for p in &c {
-                let q = [p.x, p.y, p.z];
-                grow(&mut b, &q, &q);
-            }
-            boxes.push(b);
-            let m = mesh.triangle_centroid(t);
-            centroids.push([m.x, m.y, m.z]);
-        }
-        let mut items: Vec<u32> = (0..n as u32).collect();
-        let mut builder = Builder {
-            boxes: &boxes,
-            centroids: &centroids,
-            nodes: Vec::with_capacity(2 * n / LEAF_SIZE + 1),
-        };
-        let root = Node {
-            lo: [0.0; 3],
-            hi: [0.0; 3],
-            first: 0,
-            count: 0,
-        };
-        builder.nodes.push(root);
-        builder.build(0, &mut items, 0, 0);
-        let corners = items.iter().map(|&t| mesh.corners(t as usize)).collect();
+        let mut items: Vec<Item> = (0..mesh.triangles.len())
+            .into_par_iter()
+            .map(|t| {
+                let mut b = empty_box();
+                for p in &mesh.corners(t) {
+                    let q = [p.x, p.y, p.z];
+                    grow(&mut b, &q, &q);
+                }
+                let m = mesh.triangle_centroid(t);
+                Item {
+                    lo: b.0,
+                    hi: b.1,
+                    centroid: [m.x, m.y, m.z],
+                    id: t as u32,
+                }
+            })
+            .collect();
+        let nodes = build_subtree(&mut items, 0, 0);
+        let corners = items
+            .par_iter()
+            .map(|it| mesh.corners(it.id as usize))
+            .collect();
         Ok(Bvh {
-            nodes: builder.nodes,
+            nodes,
             corners,
-            ids: items,
+            ids: items.iter().map(|it| it.id).collect(),
         })
     }
 
