@@ -8,6 +8,7 @@
 //! leaves. Triangle corners are stored in leaf order, so a leaf reads contiguous memory, and
 //! a query uses a fixed-size stack: no allocation per query.
 //!
+//! Subtrees of at least `PARALLEL_BUILD` triangles build their halves in parallel (rayon).
 //! Chosen over `parry3d-f64` 0.31 after measuring both on the same meshes and queries; see
 //! the module documentation of `meshdev` for the figures.
 
@@ -216,13 +217,14 @@ fn build_subtree(items: &mut [Item], first: usize, depth: usize) -> Vec<Node> {
 /// Binned SAH: the best of 3·(BINS−1) candidate planes, binned in one pass over the items;
 /// `None` if no plane separates them.
 fn sah_split(items: &mut [Item], cb: &Aabb) -> Option<usize> {
-    let mut scale = [0.0; 3];
-    for k in 0..3 {
+    let scale: [f64; 3] = std::array::from_fn(|k| {
         let extent = cb.1[k] - cb.0[k];
         if extent > 0.0 {
-            scale[k] = BINS as f64 / extent;
+            BINS as f64 / extent
+        } else {
+            0.0
         }
-    }
+    });
     let bin = |c: f64, k: usize| (((c - cb.0[k]) * scale[k]) as usize).min(BINS - 1);
     let mut counts = [[0usize; BINS]; 3];
     let mut bins = [[empty_box(); BINS]; 3];

@@ -10,8 +10,15 @@
 //! * Both surfaces are sampled by area (`sampling`), each sample weighted by its area;
 //!   statistics follow `stats`; the per-vertex deviation map is coloured by `colormap`.
 //!
-//! Closest-point engine: own BVH rather than `parry3d-f64` 0.31 — see the report in the
-//! benchmark `examples/bench_meshdev.rs` for the measured comparison.
+//! Closest-point engine: our own BVH, not `parry3d-f64` 0.31. Measured with a throwaway
+//! probe on this 2-core machine while other builds ran (load average ≈ 10), 100,000-triangle
+//! torus, 200,000 queries (90 % near the surface, 10 % up to 10 mm away), one thread: ours
+//! 3.7–5.2 µs per query against parry's 9.6–12.1 µs, build 150–170 ms against 190–280 ms
+//! (before our build was parallelised), distances equal to 3.6e-15 mm. Ours also returns the
+//! hit feature the pseudonormal sign needs, and adds no dependency (parry 0.31 brings
+//! glam/glamx).
+//!
+//! Every result is deterministic: samples depend only on the seed, sums run in a fixed order.
 
 pub mod bvh;
 pub mod closest;

@@ -25,7 +25,7 @@ pub const MIN_DEFAULT_SAMPLES: usize = 10_000;
 /// Most samples the default count gives (per surface).
 pub const MAX_DEFAULT_SAMPLES: usize = 1_000_000;
 /// Default seed of the area sampler.
-pub const DEFAULT_SEED: u64 = 0x07A7_1A5;
+pub const DEFAULT_SEED: u64 = 0x007A_71A5;
 
 /// How a surface is turned into weighted sample points.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
