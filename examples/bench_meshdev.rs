@@ -152,11 +152,15 @@ fn main() {
                 seconds(start),
                 t.seconds / times[2]
             );
+            // (largest |ours − trimesh|, samples where ours is the farther by > 1e-12 mm)
             let worst = |ours: &[f64], theirs: &[f64]| {
-                ours.iter()
+                let farther = ours.iter().zip(theirs).filter(|(x, y)| **x > **y + 1e-12);
+                let largest = ours
+                    .iter()
                     .zip(theirs)
                     .map(|(x, y)| (x - y).abs())
-                    .fold(0.0, f64::max)
+                    .fold(0.0, f64::max);
+                (largest, farther.count())
             };
             for (label, mine, theirs, dist) in [
                 (
@@ -174,14 +178,15 @@ fn main() {
             ] {
                 if let Some(s) = dist {
                     println!(
-                        "  {label}: trimesh mean {:.5} max {:.5} p95 {:.5}; ours {:.5} {:.5} {:.5}; largest per-sample difference {:.1e} mm",
+                        "  {label}: trimesh mean {:.5} max {:.5} p95 {:.5}; ours {:.5} {:.5} {:.5}; largest per-sample difference {:.1e} mm, ours farther on {} samples",
                         theirs.mean,
                         theirs.max,
                         theirs.p95,
                         s.mean,
                         s.max,
                         s.p95,
-                        worst(mine, &theirs.distances)
+                        worst(mine, &theirs.distances).0,
+                        worst(mine, &theirs.distances).1
                     );
                 }
             }
