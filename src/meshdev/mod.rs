@@ -40,6 +40,10 @@ pub use stats::{Directed, SurfaceDistances};
 
 use crate::mesh::TriMesh;
 
+/// Most area samples a caller may ask for per surface (about 64 bytes of working memory
+/// each: 3.2 GB).
+pub const MAX_SAMPLES: usize = 50_000_000;
+
 /// What to compute and how.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CompareOptions {
@@ -70,11 +74,15 @@ impl CompareOptions {
                 expected: "a finite tolerance >= 0 mm",
             });
         }
-        if let Sampling::Area { count: Some(0), .. } = self.sampling {
+        if let Sampling::Area {
+            count: Some(count), ..
+        } = self.sampling
+            && !(1..=MAX_SAMPLES).contains(&count)
+        {
             return Err(MeshDevError::InvalidOption {
                 field: "sampling.count",
-                value: "0".into(),
-                expected: "at least one sample",
+                value: count.to_string(),
+                expected: "1 ..= 50,000,000 samples per surface",
             });
         }
         self.colour_range.validate()
