@@ -105,8 +105,8 @@ fn main() {
     let test_bvh = Bvh::new(&test, "test").expect("valid");
     let t_bvh = seconds(start);
     let start = Instant::now();
-    let a = sample_surface(&test, &options.sampling);
-    let b = sample_surface(&reference, &options.sampling);
+    let a = sample_surface(&test, &options.sampling).expect("valid mesh");
+    let b = sample_surface(&reference, &options.sampling).expect("valid mesh");
     let t_sample = seconds(start);
     let start = Instant::now();
     let d_a: Vec<f64> = a

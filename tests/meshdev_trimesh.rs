@@ -51,8 +51,8 @@ fn directed_statistics_agree_with_trimesh() {
         ..CompareOptions::with_tolerance(0.1)
     };
     let result = compare(&test, &reference, &options).unwrap();
-    let test_samples = sample_surface(&test, &options.sampling);
-    let reference_samples = sample_surface(&reference, &options.sampling);
+    let test_samples = sample_surface(&test, &options.sampling).expect("valid mesh");
+    let reference_samples = sample_surface(&reference, &options.sampling).expect("valid mesh");
     let dir = tempfile::tempdir().unwrap();
     let Some(theirs) = run_trimesh_check(
         dir.path(),

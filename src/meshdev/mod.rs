@@ -34,15 +34,11 @@ pub use bvh::{Bvh, ClosestHit};
 pub use closest::{Feature, closest_point_on_triangle};
 pub use colormap::ColourRange;
 pub use error::MeshDevError;
-pub use sampling::{Samples, Sampling, sample_surface};
+pub use sampling::{MAX_SAMPLES, Samples, Sampling, sample_surface};
 pub use sign::Pseudonormals;
 pub use stats::{Directed, SurfaceDistances};
 
 use crate::mesh::TriMesh;
-
-/// Most area samples a caller may ask for per surface (about 64 bytes of working memory
-/// each: 3.2 GB).
-pub const MAX_SAMPLES: usize = 50_000_000;
 
 /// What to compute and how.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -74,17 +70,7 @@ impl CompareOptions {
                 expected: "a finite tolerance >= 0 mm",
             });
         }
-        if let Sampling::Area {
-            count: Some(count), ..
-        } = self.sampling
-            && !(1..=MAX_SAMPLES).contains(&count)
-        {
-            return Err(MeshDevError::InvalidOption {
-                field: "sampling.count",
-                value: count.to_string(),
-                expected: "1 ..= 50,000,000 samples per surface",
-            });
-        }
+        self.sampling.validate()?;
         self.colour_range.validate()
     }
 }
@@ -158,6 +144,7 @@ pub fn compare(
         || sample_surface(test, &options.sampling),
         || sample_surface(reference, &options.sampling),
     );
+    let (test_samples, reference_samples) = (test_samples?, reference_samples?);
     let signed: Vec<f64> = test_samples
         .points
         .par_iter()

@@ -18,12 +18,17 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
+use super::bvh::validate_mesh;
+use super::error::MeshDevError;
 use crate::mesh::TriMesh;
 
 /// Fewest samples the default count gives (per surface).
 pub const MIN_DEFAULT_SAMPLES: usize = 10_000;
 /// Most samples the default count gives (per surface).
 pub const MAX_DEFAULT_SAMPLES: usize = 1_000_000;
+/// Most area samples a caller may ask for per surface (about 64 bytes of working memory
+/// each in `compare`: 3.2 GB).
+pub const MAX_SAMPLES: usize = 50_000_000;
 /// Default seed of the area sampler.
 pub const DEFAULT_SEED: u64 = 0x007A_71A5;
 
@@ -47,6 +52,22 @@ impl Default for Sampling {
     }
 }
 
+impl Sampling {
+    /// Checks an explicit sample count: 1 ..= `MAX_SAMPLES`.
+    pub fn validate(&self) -> Result<(), MeshDevError> {
+        match *self {
+            Sampling::Area {
+                count: Some(count), ..
+            } if !(1..=MAX_SAMPLES).contains(&count) => Err(MeshDevError::InvalidOption {
+                field: "sampling.count",
+                value: count.to_string(),
+                expected: "1 ..= 50,000,000 samples per surface",
+            }),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Sample points and their area weights (mm²); the weights sum to the surface area.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Samples {
@@ -63,9 +84,11 @@ fn unit(x: u64) -> f64 {
     (z >> 11) as f64 / (1u64 << 53) as f64
 }
 
-/// Samples `mesh` (indices must be valid) by `scheme`.
-pub fn sample_surface(mesh: &TriMesh, scheme: &Sampling) -> Samples {
-    match *scheme {
+/// Samples `mesh` by `scheme`; a surface of zero area gives no samples.
+pub fn sample_surface(mesh: &TriMesh, scheme: &Sampling) -> Result<Samples, MeshDevError> {
+    validate_mesh(mesh, "sampled")?;
+    scheme.validate()?;
+    Ok(match *scheme {
         Sampling::Area { count, seed } => {
             let count = count.unwrap_or_else(|| {
                 (10 * mesh.triangles.len()).clamp(MIN_DEFAULT_SAMPLES, MAX_DEFAULT_SAMPLES)
@@ -73,7 +96,7 @@ pub fn sample_surface(mesh: &TriMesh, scheme: &Sampling) -> Samples {
             area_samples(mesh, count, seed)
         }
         Sampling::VertexAreas => vertex_samples(mesh),
-    }
+    })
 }
 
 fn area_samples(mesh: &TriMesh, count: usize, seed: u64) -> Samples {
@@ -139,8 +162,8 @@ mod tests {
             count: Some(1400),
             seed: 3,
         };
-        let s = sample_surface(&m, &scheme);
-        assert_eq!(s, sample_surface(&m, &scheme));
+        let s = sample_surface(&m, &scheme).unwrap();
+        assert_eq!(s, sample_surface(&m, &scheme).unwrap());
         assert_eq!(s.points.len(), 1400);
         assert!((s.weights.iter().sum::<f64>() - 14.0).abs() < 1e-9);
         let on = |p: &Point3<f64>, axis: usize, value: f64| (p[axis] - value).abs() < 1e-12;
@@ -161,14 +184,15 @@ mod tests {
                 count: Some(1400),
                 seed: 4,
             },
-        );
+        )
+        .unwrap();
         assert_ne!(s.points, other.points);
     }
 
     #[test]
     fn vertex_weights_are_a_third_of_incident_areas() {
         let m = shapes::box_mesh(Point3::origin(), Point3::new(2.0, 2.0, 2.0), 2);
-        let s = sample_surface(&m, &Sampling::VertexAreas);
+        let s = sample_surface(&m, &Sampling::VertexAreas).unwrap();
         assert_eq!(s.points.len(), m.vertices.len());
         assert!((s.weights.iter().sum::<f64>() - 24.0).abs() < 1e-12);
         // Every triangle has area ½, so w_v = (number of incident triangles)·½/3.
