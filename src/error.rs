@@ -23,6 +23,8 @@ pub enum Error {
     Landmark(#[from] crate::register::landmarks::LandmarkError),
     #[error(transparent)]
     Case(#[from] crate::pipeline::case::CaseNotFound),
+    #[error(transparent)]
+    MeshDev(#[from] crate::meshdev::MeshDevError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -42,7 +44,7 @@ impl Error {
             | Error::Landmark(_)
             | Error::Case(_)
             | Error::Usage(_) => ExitStatus::BadInput,
-            Error::Io { .. } => ExitStatus::CaseFailed,
+            Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }
     }
 }

@@ -11,6 +11,7 @@ pub mod fem;
 pub mod image;
 pub mod io_util;
 pub mod mesh;
+pub mod meshdev;
 pub mod phantom;
 pub mod pipeline;
 pub mod progress;

@@ -3,6 +3,7 @@
 
 pub mod domain;
 pub mod isosurface;
+pub mod shapes;
 pub mod surface;
 
 pub use domain::LabelledDomain;

@@ -1,0 +1,181 @@
+//! Surface-distance scoring of a test (registered) surface against a reference (manual
+//! segmentation) surface, MeshDev-style, with the metrics of mechanics-metrics.md §0.2:
+//! MASD (headline), ASSD, RMS, HD, HD95, signed bias, Surface Dice@τ, and the MeshDev-mode
+//! one-sided per-vertex mean and max (Roy, Foufou & Truchetet 2004, §3.4 of the note).
+//!
+//! * Distances are exact point-to-triangle distances (`closest`, Ericson's region method)
+//!   found through our own SAH bounding-volume hierarchy (`bvh`).
+//! * Signs come from the reference's angle-weighted pseudonormals (`sign`, Bærentzen &
+//!   Aanæs 2005); positive = test outside the reference.
+//! * Both surfaces are sampled by area (`sampling`), each sample weighted by its area;
+//!   statistics follow `stats`; the per-vertex deviation map is coloured by `colormap`.
+//!
+//! Closest-point engine: our own BVH, not `parry3d-f64` 0.31. Measured with a throwaway
+//! probe on this 2-core machine while other builds ran (load average ≈ 10), 100,000-triangle
+//! torus, 200,000 queries (90 % near the surface, 10 % up to 10 mm away), one thread, thread
+//! CPU time per query: ours 2.05–2.25 µs, parry 3.55–4.30 µs (wall 3.9–5.9 µs against
+//! 7.3–10.8 µs); build wall 120–170 ms against 195–280 ms; distances equal to 3.6e-15 mm.
+//! Ours also returns the hit feature the pseudonormal sign needs, and adds no dependency
+//! (parry 0.31 brings glam/glamx).
+//!
+//! Every result is deterministic: samples depend only on the seed, sums run in a fixed order.
+
+pub mod bvh;
+pub mod closest;
+pub mod colormap;
+pub mod error;
+pub mod sampling;
+pub mod sign;
+pub mod stats;
+
+use rayon::prelude::*;
+
+pub use bvh::{Bvh, ClosestHit};
+pub use closest::{Feature, closest_point_on_triangle};
+pub use colormap::ColourRange;
+pub use error::MeshDevError;
+pub use sampling::{MAX_SAMPLES, Samples, Sampling, sample_surface};
+pub use sign::Pseudonormals;
+pub use stats::{Directed, SurfaceDistances};
+
+use crate::mesh::TriMesh;
+
+/// What to compute and how.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CompareOptions {
+    /// How both surfaces are sampled (default: area sampling, 10 per triangle, fixed seed).
+    pub sampling: Sampling,
+    /// Surface Dice tolerance τ (mm); the metrics note uses one voxel of the image.
+    pub tolerance_mm: f64,
+    /// Fixed signed range of the deviation colours (default −0.5 … +0.5 mm).
+    pub colour_range: ColourRange,
+}
+
+impl CompareOptions {
+    /// Default sampling and colour range with Surface Dice tolerance `tolerance_mm`
+    /// (give one voxel, e.g. the CBCT's largest spacing).
+    pub fn with_tolerance(tolerance_mm: f64) -> Self {
+        CompareOptions {
+            sampling: Sampling::default(),
+            tolerance_mm,
+            colour_range: ColourRange::default(),
+        }
+    }
+
+    fn validate(&self) -> Result<(), MeshDevError> {
+        if !(self.tolerance_mm.is_finite() && self.tolerance_mm >= 0.0) {
+            return Err(MeshDevError::InvalidOption {
+                field: "tolerance_mm",
+                value: self.tolerance_mm.to_string(),
+                expected: "a finite tolerance >= 0 mm",
+            });
+        }
+        self.sampling.validate()?;
+        self.colour_range.validate()
+    }
+}
+
+/// Per test vertex: signed distance to the reference (mm, positive outside) and its colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeviationMap {
+    pub quality: Vec<f64>,
+    pub colours: Vec<[u8; 3]>,
+}
+
+/// The result of one comparison.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    pub distances: SurfaceDistances,
+    pub deviation: DeviationMap,
+}
+
+/// A surface indexed for signed closest-point queries.
+#[derive(Debug, Clone)]
+pub struct SignedSurface {
+    pub bvh: Bvh,
+    pub normals: Pseudonormals,
+}
+
+impl SignedSurface {
+    /// Indexes `mesh`; `role` names it in errors.
+    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, MeshDevError> {
+        let (bvh, normals) =
+            rayon::join(|| Bvh::new(mesh, role), || Pseudonormals::new(mesh, role));
+        Ok(SignedSurface {
+            bvh: bvh?,
+            normals: normals?,
+        })
+    }
+
+    /// Signed distance of `p` (mm): positive outside, negative inside.
+    #[inline]
+    pub fn signed_distance(&self, p: &nalgebra::Point3<f64>) -> f64 {
+        let hit = self.bvh.closest(p);
+        self.normals.signed_distance(p, &hit)
+    }
+}
+
+fn require_area(mesh: &TriMesh, role: &'static str) -> Result<(), MeshDevError> {
+    if mesh.area() > 0.0 {
+        Ok(())
+    } else {
+        Err(MeshDevError::ZeroArea { mesh: role })
+    }
+}
+
+/// Compares `test` (e.g. the registered atlas structure) with `reference` (e.g. the manual
+/// segmentation of the same structure): symmetric statistics and the per-vertex signed
+/// deviation map of `test`.
+pub fn compare(
+    test: &TriMesh,
+    reference: &TriMesh,
+    options: &CompareOptions,
+) -> Result<Comparison, MeshDevError> {
+    options.validate()?;
+    let (reference_index, test_bvh) = rayon::join(
+        || SignedSurface::new(reference, "reference"),
+        || Bvh::new(test, "test"),
+    );
+    let (reference_index, test_bvh) = (reference_index?, test_bvh?);
+    require_area(test, "test")?;
+    require_area(reference, "reference")?;
+
+    let (test_samples, reference_samples) = rayon::join(
+        || sample_surface(test, &options.sampling),
+        || sample_surface(reference, &options.sampling),
+    );
+    let (test_samples, reference_samples) = (test_samples?, reference_samples?);
+    let signed: Vec<f64> = test_samples
+        .points
+        .par_iter()
+        .map(|p| reference_index.signed_distance(p))
+        .collect();
+    let unsigned: Vec<f64> = signed.par_iter().map(|s| s.abs()).collect();
+    let back: Vec<f64> = reference_samples
+        .points
+        .par_iter()
+        .map(|p| test_bvh.closest(p).distance)
+        .collect();
+    let quality: Vec<f64> = test
+        .vertices
+        .par_iter()
+        .map(|p| reference_index.signed_distance(p))
+        .collect();
+    let vertex_distances: Vec<f64> = quality.par_iter().map(|s| s.abs()).collect();
+
+    let tolerance = options.tolerance_mm;
+    let (test_to_ref, ref_to_test) = rayon::join(
+        || stats::directed(&unsigned, &test_samples.weights, tolerance),
+        || stats::directed(&back, &reference_samples.weights, tolerance),
+    );
+    let bias = stats::weighted_mean(&signed, &test_samples.weights);
+    let distances = stats::symmetric(test_to_ref, ref_to_test, bias, &vertex_distances, tolerance);
+    let colours = quality
+        .par_iter()
+        .map(|&s| options.colour_range.colour(s))
+        .collect();
+    Ok(Comparison {
+        distances,
+        deviation: DeviationMap { quality, colours },
+    })
+}
