@@ -37,6 +37,7 @@ pub struct Config {
     pub ingest: IngestConfig,
     pub landmarks: crate::register::landmarks::CheckConfig,
     pub rigid: RigidConfig,
+    pub deform: crate::register::deform::DeformConfig,
 }
 
 /// Knobs of the rigid (landmark) alignment.
