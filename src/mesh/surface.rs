@@ -62,40 +62,9 @@ impl TriMesh {
 mod tests {
     use super::*;
 
-    /// A unit cube with outward triangles.
-    fn cube() -> TriMesh {
-        let v = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
-        TriMesh {
-            vertices: vec![
-                v(0., 0., 0.),
-                v(1., 0., 0.),
-                v(1., 1., 0.),
-                v(0., 1., 0.),
-                v(0., 0., 1.),
-                v(1., 0., 1.),
-                v(1., 1., 1.),
-                v(0., 1., 1.),
-            ],
-            triangles: vec![
-                [0, 2, 1],
-                [0, 3, 2],
-                [4, 5, 6],
-                [4, 6, 7],
-                [0, 1, 5],
-                [0, 5, 4],
-                [1, 2, 6],
-                [1, 6, 5],
-                [2, 3, 7],
-                [2, 7, 6],
-                [3, 0, 4],
-                [3, 4, 7],
-            ],
-        }
-    }
-
     #[test]
     fn cube_area_and_volume() {
-        let c = cube();
+        let c = crate::mesh::shapes::box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), 3);
         assert!((c.area() - 6.0).abs() < 1e-12);
         assert!((c.signed_volume() - 1.0).abs() < 1e-12);
     }

@@ -174,34 +174,12 @@ mod tests {
                 }
             }
         }
-        // a closed box surface |x|,|y|,|z| <= 1 (two triangles per face)
-        let c = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
-        let mesh = TriMesh {
-            vertices: vec![
-                c(-1., -1., -1.),
-                c(1., -1., -1.),
-                c(1., 1., -1.),
-                c(-1., 1., -1.),
-                c(-1., -1., 1.),
-                c(1., -1., 1.),
-                c(1., 1., 1.),
-                c(-1., 1., 1.),
-            ],
-            triangles: vec![
-                [0, 2, 1],
-                [0, 3, 2],
-                [4, 5, 6],
-                [4, 6, 7],
-                [0, 1, 5],
-                [0, 5, 4],
-                [1, 2, 6],
-                [1, 6, 5],
-                [2, 3, 7],
-                [2, 7, 6],
-                [3, 0, 4],
-                [3, 4, 7],
-            ],
-        };
+        // a closed box surface |x|,|y|,|z| <= 1
+        let mesh = crate::mesh::shapes::box_mesh(
+            Point3::new(-1.0, -1.0, -1.0),
+            Point3::new(1.0, 1.0, 1.0),
+            2,
+        );
         (v, mesh)
     }
 
