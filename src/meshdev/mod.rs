@@ -27,6 +27,7 @@ pub mod error;
 pub mod sampling;
 pub mod sign;
 pub mod stats;
+pub mod structures;
 
 use rayon::prelude::*;
 

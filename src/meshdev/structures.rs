@@ -1,0 +1,187 @@
+//! Named structures to compare: the surfaces of a label map (one per label, in world LPS mm),
+//! the label numbering the project writes, and the pairing of reference and test structures
+//! by name, including a reference that fuses several ossicles into one surface (then the test
+//! side is the union of its parts).
+
+use std::collections::BTreeMap;
+
+use crate::mesh::TriMesh;
+use crate::mesh::isosurface::label_surface;
+
+/// The label numbers of the project's label maps (phantom segmentations).
+pub const DEFAULT_LABELS: [(u16, &str); 4] =
+    [(1, "malleus"), (2, "incus"), (3, "stapes"), (4, "eardrum")];
+
+/// Names that stand for several structures fused into one surface.
+pub const FUSED_NAMES: [(&str, &[&str]); 2] = [
+    ("ossicles", &["malleus", "incus", "stapes"]),
+    ("chain", &["malleus", "incus", "stapes"]),
+];
+
+/// A named surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Structure {
+    pub name: String,
+    pub mesh: TriMesh,
+}
+
+/// One surface per label of `table` present in the label map, via [`label_surface`].
+pub fn structures_from_labels(
+    volume: &crate::image::Volume,
+    table: &[(u16, String)],
+) -> Vec<Structure> {
+    let labels: Vec<u16> = volume
+        .data
+        .iter()
+        .map(|v| v.round().max(0.0) as u16)
+        .collect();
+    table
+        .iter()
+        .filter(|(label, _)| labels.contains(label))
+        .map(|(label, name)| Structure {
+            name: name.clone(),
+            mesh: label_surface(
+                volume.dims,
+                &labels,
+                &[*label],
+                volume.origin,
+                volume.index_to_world_matrix(),
+            ),
+        })
+        .collect()
+}
+
+/// Concatenates surfaces into one mesh (their union, for a fused reference).
+pub fn merge(meshes: &[&TriMesh]) -> TriMesh {
+    let mut out = TriMesh::default();
+    for m in meshes {
+        let base = out.vertices.len() as u32;
+        out.vertices.extend_from_slice(&m.vertices);
+        out.triangles
+            .extend(m.triangles.iter().map(|t| t.map(|v| v + base)));
+    }
+    out
+}
+
+/// A reference structure and the test surface to compare with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pair {
+    pub name: String,
+    pub reference: TriMesh,
+    pub test: TriMesh,
+}
+
+/// Pairs structures by (case-insensitive) name. `aliases` maps a reference name to test names
+/// (the `--pair` option); a fused reference name (e.g. "ossicles") pairs with the union of its
+/// parts. Returns the pairs and the names left unpaired on either side.
+pub fn pair_structures(
+    reference: &[Structure],
+    test: &[Structure],
+    aliases: &BTreeMap<String, Vec<String>>,
+) -> (Vec<Pair>, Vec<String>) {
+    let key = |s: &str| s.trim().to_ascii_lowercase();
+    let by_name: BTreeMap<String, &TriMesh> =
+        test.iter().map(|s| (key(&s.name), &s.mesh)).collect();
+    let mut pairs = Vec::new();
+    let mut unpaired = Vec::new();
+    let mut used = Vec::new();
+    for r in reference {
+        let name = key(&r.name);
+        let wanted: Vec<String> = match aliases.get(&name) {
+            Some(list) => list.iter().map(|s| key(s)).collect(),
+            None if by_name.contains_key(&name) => vec![name.clone()],
+            None => FUSED_NAMES
+                .iter()
+                .find(|(fused, _)| *fused == name)
+                .map(|(_, parts)| parts.iter().map(|p| p.to_string()).collect())
+                .unwrap_or_default(),
+        };
+        let parts: Vec<&TriMesh> = wanted
+            .iter()
+            .filter_map(|w| by_name.get(w).copied())
+            .collect();
+        if parts.is_empty() || parts.len() != wanted.len() {
+            unpaired.push(format!("reference {}", r.name));
+            continue;
+        }
+        used.extend(wanted);
+        pairs.push(Pair {
+            name: r.name.clone(),
+            reference: r.mesh.clone(),
+            test: merge(&parts),
+        });
+    }
+    unpaired.extend(
+        test.iter()
+            .filter(|s| !used.contains(&key(&s.name)))
+            .map(|s| format!("test {}", s.name)),
+    );
+    (pairs, unpaired)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::Volume;
+    use crate::mesh::shapes;
+    use nalgebra::{Matrix3, Point3, Vector3};
+
+    fn named(name: &str, r: f64) -> Structure {
+        Structure {
+            name: name.into(),
+            mesh: shapes::icosphere(Point3::new(r * 3.0, 0.0, 0.0), r, 1),
+        }
+    }
+
+    #[test]
+    fn pairs_by_name_alias_and_fused_reference() {
+        let test = [
+            named("Malleus", 1.0),
+            named("incus", 1.1),
+            named("stapes", 0.5),
+            named("eardrum", 2.0),
+        ];
+        let reference = [
+            named("malleus", 1.0),
+            named("ossicles", 3.0),
+            named("TM", 2.0),
+        ];
+        let aliases = BTreeMap::from([("tm".to_string(), vec!["eardrum".to_string()])]);
+        let (pairs, unpaired) = pair_structures(&reference, &test, &aliases);
+        assert_eq!(pairs.len(), 3);
+        let fused = &pairs[1];
+        assert_eq!(fused.name, "ossicles");
+        let parts = test[0].mesh.triangles.len()
+            + test[1].mesh.triangles.len()
+            + test[2].mesh.triangles.len();
+        assert_eq!(fused.test.triangles.len(), parts);
+        assert!(unpaired.is_empty(), "{unpaired:?}");
+        let (_, unpaired) = pair_structures(&[named("cochlea", 1.0)], &test, &BTreeMap::new());
+        assert_eq!(unpaired.len(), 5);
+    }
+
+    #[test]
+    fn label_map_gives_one_surface_per_present_label() {
+        let mut v = Volume {
+            dims: [10, 10, 10],
+            spacing: [0.5; 3],
+            origin: Vector3::zeros(),
+            direction: Matrix3::identity(),
+            data: vec![0.0; 1000],
+        };
+        for idx in [v.index(2, 2, 2), v.index(3, 2, 2)] {
+            v.data[idx] = 1.0;
+        }
+        let idx = v.index(7, 7, 7);
+        v.data[idx] = 3.0;
+        let table: Vec<(u16, String)> = DEFAULT_LABELS
+            .iter()
+            .map(|(l, n)| (*l, n.to_string()))
+            .collect();
+        let s = structures_from_labels(&v, &table);
+        let names: Vec<&str> = s.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["malleus", "stapes"]);
+        // two voxels enclose more than one
+        assert!(s[0].mesh.signed_volume() > s[1].mesh.signed_volume());
+    }
+}
