@@ -2,7 +2,12 @@
 //! consumes, and mesh file formats.
 
 pub mod domain;
+pub mod mesher;
+pub mod quality;
 pub mod surface;
+pub mod tet;
+pub mod topology;
 
 pub use domain::LabelledDomain;
 pub use surface::TriMesh;
+pub use tet::TetMesh;
