@@ -26,13 +26,16 @@
 //! Deterministic: labels and interface targets are computed in parallel into index-ordered
 //! vectors; repair and guarded moves run sequentially in node order.
 
+mod closest;
 mod label;
 pub mod lattice;
 mod repair;
 mod snap;
+mod surface_domain;
 
 pub use repair::RepairOutcome;
 pub use snap::SnapOutcome;
+pub use surface_domain::{SurfaceDomain, SurfaceDomainError};
 
 use crate::mesh::{LabelledDomain, TetMesh};
 use lattice::{Lattice, MEAN_EDGE_PER_SPACING, NodeTets};
