@@ -2,6 +2,7 @@
 //! consumes, and mesh file formats.
 
 pub mod domain;
+pub mod io;
 pub mod mesher;
 pub mod quality;
 pub mod surface;
