@@ -6,7 +6,11 @@ pub mod gmsh;
 pub mod obj;
 pub mod ply;
 pub mod stl;
+pub mod volume;
 pub mod vtu;
+mod xml;
+
+pub use volume::{CellArray, VolumeMesh};
 
 use std::path::{Path, PathBuf};
 
@@ -80,5 +84,7 @@ pub(crate) fn check_indices(
     Ok(())
 }
 
+#[cfg(test)]
+mod meshio_check;
 #[cfg(test)]
 pub(crate) mod test_meshes;

@@ -37,7 +37,16 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, MeshIoError> {
                         .next()
                         .and_then(|w| w.parse::<f64>().ok())
                         .filter(|x| x.is_finite())
-                        .ok_or_else(|| MeshIoError::parse(path, at("v"), format!("three finite coordinates, coordinate {} missing or invalid", k + 1)))?;
+                        .ok_or_else(|| {
+                            MeshIoError::parse(
+                                path,
+                                at("v"),
+                                format!(
+                                    "three finite coordinates, coordinate {} missing or invalid",
+                                    k + 1
+                                ),
+                            )
+                        })?;
                 }
                 mesh.vertices.push(Point3::from(c));
             }
@@ -48,7 +57,13 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, MeshIoError> {
                         .split('/')
                         .next()
                         .and_then(|s| s.parse::<i64>().ok())
-                        .ok_or_else(|| MeshIoError::parse(path, at("f"), format!("vertex indices, found '{w}'")))?;
+                        .ok_or_else(|| {
+                            MeshIoError::parse(
+                                path,
+                                at("f"),
+                                format!("vertex indices, found '{w}'"),
+                            )
+                        })?;
                     let n = mesh.vertices.len() as i64;
                     let resolved = match index {
                         k if k > 0 => k - 1,
@@ -56,7 +71,13 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, MeshIoError> {
                         _ => -1,
                     };
                     if resolved < 0 || resolved >= n || resolved > u32::MAX as i64 {
-                        return Err(MeshIoError::parse(path, at("f"), format!("an index of one of the {n} vertices defined so far, found {index}")));
+                        return Err(MeshIoError::parse(
+                            path,
+                            at("f"),
+                            format!(
+                                "an index of one of the {n} vertices defined so far, found {index}"
+                            ),
+                        ));
                     }
                     face.push(resolved as u32);
                 }
@@ -115,10 +136,16 @@ mod tests {
 
     #[test]
     fn reads_the_sofa_malleus() {
-        let Some(path) = shared_anatomy("sofa-ossicles/malleus.obj") else { return };
+        let Some(path) = shared_anatomy("sofa-ossicles/malleus.obj") else {
+            return;
+        };
         let m = read_obj(&path).unwrap();
         assert_eq!((m.vertices.len(), m.triangles.len()), (1876, 3748));
-        assert!((m.signed_volume() - 10.51).abs() < 0.01, "{}", m.signed_volume());
+        assert!(
+            (m.signed_volume() - 10.51).abs() < 0.01,
+            "{}",
+            m.signed_volume()
+        );
         let topo = surface_topology(&m);
         assert!(topo.is_closed_oriented_manifold());
         assert_eq!(topo.euler, 2);

@@ -49,15 +49,24 @@ pub fn ply_bytes(mesh: &TriMesh, attrs: &VertexAttributes) -> Result<Vec<u8>, St
     let mut ply = Ply::<DefaultElement>::new();
     ply.header.encoding = Encoding::BinaryLittleEndian;
     let mut ve = ElementDef::new("vertex".into());
-    let mut names: Vec<(&str, ScalarType)> = vec![("x", ScalarType::Double), ("y", ScalarType::Double), ("z", ScalarType::Double)];
+    let mut names: Vec<(&str, ScalarType)> = vec![
+        ("x", ScalarType::Double),
+        ("y", ScalarType::Double),
+        ("z", ScalarType::Double),
+    ];
     if attrs.quality.is_some() {
         names.push(("quality", ScalarType::Double));
     }
     if attrs.colors.is_some() {
-        names.extend([("red", ScalarType::UChar), ("green", ScalarType::UChar), ("blue", ScalarType::UChar)]);
+        names.extend([
+            ("red", ScalarType::UChar),
+            ("green", ScalarType::UChar),
+            ("blue", ScalarType::UChar),
+        ]);
     }
     for (name, ty) in names {
-        ve.properties.add(PropertyDef::new(name.into(), PropertyType::Scalar(ty)));
+        ve.properties
+            .add(PropertyDef::new(name.into(), PropertyType::Scalar(ty)));
     }
     ve.count = n;
     ply.header.elements.add(ve);
@@ -92,7 +101,10 @@ pub fn ply_bytes(mesh: &TriMesh, attrs: &VertexAttributes) -> Result<Vec<u8>, St
         .iter()
         .map(|t| {
             let mut e = DefaultElement::new();
-            e.insert("vertex_indices".into(), Property::ListInt(t.iter().map(|&v| v as i32).collect()));
+            e.insert(
+                "vertex_indices".into(),
+                Property::ListInt(t.iter().map(|&v| v as i32).collect()),
+            );
             e
         })
         .collect();
@@ -107,7 +119,8 @@ pub fn ply_bytes(mesh: &TriMesh, attrs: &VertexAttributes) -> Result<Vec<u8>, St
 
 /// Writes `mesh` as binary little-endian PLY with optional per-vertex quality and colours.
 pub fn write_ply(path: &Path, mesh: &TriMesh, attrs: &VertexAttributes) -> Result<(), MeshIoError> {
-    let bytes = ply_bytes(mesh, attrs).map_err(|e| MeshIoError::parse(path, "vertex attributes", e))?;
+    let bytes =
+        ply_bytes(mesh, attrs).map_err(|e| MeshIoError::parse(path, "vertex attributes", e))?;
     write_bytes(path, &bytes)
 }
 
@@ -116,7 +129,13 @@ pub fn read_ply(path: &Path) -> Result<(TriMesh, VertexAttributes), MeshIoError>
     let bytes = read_bytes(path)?;
     let ply = ply_rs_bw::parser::Parser::<DefaultElement>::new()
         .read_ply(&mut BufReader::new(bytes.as_slice()))
-        .map_err(|e| MeshIoError::parse(path, "PLY header or body", format!("a valid PLY file ({e})")))?;
+        .map_err(|e| {
+            MeshIoError::parse(
+                path,
+                "PLY header or body",
+                format!("a valid PLY file ({e})"),
+            )
+        })?;
     let empty = Vec::new();
     let vertices = ply.payload.get("vertex").unwrap_or(&empty);
     let mut mesh = TriMesh::default();
@@ -130,7 +149,8 @@ pub fn read_ply(path: &Path) -> Result<(TriMesh, VertexAttributes), MeshIoError>
                 MeshIoError::parse(path, format!("vertex {i} property '{k}'"), "a number")
             })
         };
-        mesh.vertices.push(Point3::new(get("x")?, get("y")?, get("z")?));
+        mesh.vertices
+            .push(Point3::new(get("x")?, get("y")?, get("z")?));
         if with_q {
             quality.push(get("quality")?);
         }
@@ -144,9 +164,19 @@ pub fn read_ply(path: &Path) -> Result<(TriMesh, VertexAttributes), MeshIoError>
             .get("vertex_indices")
             .or_else(|| e.get("vertex_index"))
             .and_then(Property::to_u32_list)
-            .ok_or_else(|| MeshIoError::parse(path, format!("face {f}"), "a 'vertex_indices' list of non-negative integers"))?;
+            .ok_or_else(|| {
+                MeshIoError::parse(
+                    path,
+                    format!("face {f}"),
+                    "a 'vertex_indices' list of non-negative integers",
+                )
+            })?;
         if list.len() < 3 {
-            return Err(MeshIoError::parse(path, format!("face {f}"), "at least 3 vertex indices"));
+            return Err(MeshIoError::parse(
+                path,
+                format!("face {f}"),
+                "at least 3 vertex indices",
+            ));
         }
         for k in 1..list.len() - 1 {
             mesh.triangles.push([list[0], list[k], list[k + 1]]);
@@ -207,7 +237,11 @@ mod tests {
     fn bad_files_are_errors_naming_the_problem() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.ply");
-        std::fs::write(&path, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n").unwrap();
+        std::fs::write(
+            &path,
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n",
+        )
+        .unwrap();
         let e = read_ply(&path).unwrap_err().to_string();
         assert!(e.contains("bad.ply") && e.contains("'y'"), "{e}");
         std::fs::write(&path, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 5\n").unwrap();
@@ -215,6 +249,9 @@ mod tests {
         assert!(e.contains("triangle 0"), "{e}");
         std::fs::write(&path, b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nend_header\n\x01").unwrap();
         assert!(read_ply(&path).is_err());
-        assert!(matches!(read_ply(&dir.path().join("missing.ply")), Err(MeshIoError::Io { .. })));
+        assert!(matches!(
+            read_ply(&dir.path().join("missing.ply")),
+            Err(MeshIoError::Io { .. })
+        ));
     }
 }

@@ -46,7 +46,11 @@ pub fn write_stl(path: &Path, mesh: &TriMesh, encoding: StlEncoding) -> Result<(
             let mut s = String::from("solid otoatlas\n");
             for t in &triangles {
                 let n = t.normal.0;
-                let _ = writeln!(s, "  facet normal {:e} {:e} {:e}\n    outer loop", n[0], n[1], n[2]);
+                let _ = writeln!(
+                    s,
+                    "  facet normal {:e} {:e} {:e}\n    outer loop",
+                    n[0], n[1], n[2]
+                );
                 for v in &t.vertices {
                     let _ = writeln!(s, "      vertex {:e} {:e} {:e}", v.0[0], v.0[1], v.0[2]);
                 }
@@ -62,8 +66,13 @@ pub fn write_stl(path: &Path, mesh: &TriMesh, encoding: StlEncoding) -> Result<(
 /// Reads a binary or ASCII STL file into an indexed surface.
 pub fn read_stl(path: &Path) -> Result<TriMesh, MeshIoError> {
     let bytes = read_bytes(path)?;
-    let indexed = stl_io::read_stl(&mut Cursor::new(bytes))
-        .map_err(|e| MeshIoError::parse(path, "STL body", format!("a binary or ASCII STL file ({e})")))?;
+    let indexed = stl_io::read_stl(&mut Cursor::new(bytes)).map_err(|e| {
+        MeshIoError::parse(
+            path,
+            "STL body",
+            format!("a binary or ASCII STL file ({e})"),
+        )
+    })?;
     let vertices = indexed
         .vertices
         .iter()
@@ -73,11 +82,18 @@ pub fn read_stl(path: &Path) -> Result<TriMesh, MeshIoError> {
     for (f, face) in indexed.faces.iter().enumerate() {
         let tri = face.vertices.map(|v| u32::try_from(v).unwrap_or(u32::MAX));
         if tri.iter().any(|&v| v as usize >= vertices.len()) {
-            return Err(MeshIoError::parse(path, format!("facet {f}"), "vertices inside the file"));
+            return Err(MeshIoError::parse(
+                path,
+                format!("facet {f}"),
+                "vertices inside the file",
+            ));
         }
         triangles.push(tri);
     }
-    Ok(TriMesh { vertices, triangles })
+    Ok(TriMesh {
+        vertices,
+        triangles,
+    })
 }
 
 #[cfg(test)]
@@ -92,7 +108,10 @@ mod tests {
         for p in &mut mesh.vertices {
             *p = Point3::new(p.x * 0.5 + 3.25, p.y * 2.0, p.z - 1.5);
         }
-        for (name, enc) in [("b.stl", StlEncoding::Binary), ("a.stl", StlEncoding::Ascii)] {
+        for (name, enc) in [
+            ("b.stl", StlEncoding::Binary),
+            ("a.stl", StlEncoding::Ascii),
+        ] {
             let path = dir.path().join(name);
             write_stl(&path, &mesh, enc).unwrap();
             let back = read_stl(&path).unwrap();
@@ -112,7 +131,11 @@ mod tests {
     fn garbage_is_an_error() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.stl");
-        std::fs::write(&path, "solid x\n facet normal 0 0 1\n outer loop\n vertex 1 2\n").unwrap();
+        std::fs::write(
+            &path,
+            "solid x\n facet normal 0 0 1\n outer loop\n vertex 1 2\n",
+        )
+        .unwrap();
         let e = read_stl(&path).unwrap_err().to_string();
         assert!(e.contains("bad.stl"), "{e}");
         // Binary header announcing 5 facets, none present.

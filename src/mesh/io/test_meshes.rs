@@ -53,7 +53,9 @@ pub fn kuhn_cube() -> TetMesh {
 
 /// A file under the shared anatomy folder, or `None` (with a note) when it is absent.
 pub fn shared_anatomy(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/anatomy").join(rel);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/anatomy")
+        .join(rel);
     if p.exists() {
         Some(p)
     } else {
@@ -70,7 +72,10 @@ pub fn python_with(module: &str, script: &str, args: &[&str]) -> Option<String> 
         .args(["-c", &format!("import {module}")])
         .output();
     if !matches!(&probe, Ok(o) if o.status.success()) {
-        assert!(!require, "python3 with {module} is required (OTOATLAS_REQUIRE_PYTHON=1)");
+        assert!(
+            !require,
+            "python3 with {module} is required (OTOATLAS_REQUIRE_PYTHON=1)"
+        );
         eprintln!("skipped: python3 with {module} not available");
         return None;
     }
@@ -80,6 +85,10 @@ pub fn python_with(module: &str, script: &str, args: &[&str]) -> Option<String> 
         .args(args)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     Some(String::from_utf8(out.stdout).unwrap())
 }
