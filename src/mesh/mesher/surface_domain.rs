@@ -1,7 +1,10 @@
 //! `SurfaceDomain`: a [`LabelledDomain`] made of one closed triangle surface per region, so
 //! the mesher can build from surfaces (segmentations, imported atlases) as well as from
 //! analytic anatomy. Region `i + 1` is the inside of surface `i`; where surfaces overlap the
-//! lower region wins. Distances and inside tests use a BVH and pseudonormals (`closest`).
+//! lower region wins, so region `r` is surface `r` minus all lower ones and its signed distance
+//! is the CSG difference `max(φ_r, −φ_s for s < r)` (sign-exact, 1-Lipschitz, a lower bound of
+//! the true distance away from the boundary). Distances and inside tests use a BVH and
+//! pseudonormals (`closest`).
 
 use nalgebra::Point3;
 
@@ -98,10 +101,22 @@ impl LabelledDomain for SurfaceDomain {
     }
 
     fn signed_distance(&self, region: u16, p: &Point3<f64>) -> f64 {
-        match self.regions.get((region as usize).wrapping_sub(1)) {
-            Some(index) => index.signed_distance(p),
-            None => f64::INFINITY,
+        let Some(index) = self.regions.get((region as usize).wrapping_sub(1)) else {
+            return f64::INFINITY;
+        };
+        let mut d = index.signed_distance(p);
+        for lower in &self.regions[..region as usize - 1] {
+            // Outside a lower surface's box by `gap`, −φ ≤ −gap: it cannot raise `d`.
+            let (lo, hi) = lower.bounds();
+            let gap = (0..3)
+                .map(|a| (lo[a] - p[a]).max(p[a] - hi[a]).max(0.0).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if -gap > d {
+                d = d.max(-lower.signed_distance(p));
+            }
         }
+        d
     }
 }
 
@@ -261,5 +276,37 @@ mod tests {
         assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
         let q = crate::mesh::quality::quality_stats(m, |_| true);
         assert!(q.min_dihedral_deg >= 10.0 - 1e-9, "{q:?}");
+    }
+
+    #[test]
+    fn nested_surfaces_make_a_core_and_a_shell() {
+        let (inner, outer) = (uv_sphere(0.8, 30, 60), uv_sphere(1.6, 40, 80));
+        let (v_in, v_out) = (inner.signed_volume(), outer.signed_volume());
+        let domain = SurfaceDomain::new(&[inner, outer]).unwrap();
+        // Inside the core, the shell's distance is the distance to the core (CSG difference).
+        let d = domain.signed_distance(2, &Point3::new(0.1, 0.0, 0.0));
+        assert!((d - 0.7).abs() < 0.01, "{d}");
+        let out = mesh_domain(
+            &domain,
+            &MesherParams {
+                target_edge_mm: 0.2,
+                ..MesherParams::default()
+            },
+        )
+        .unwrap();
+        let m = &out.mesh;
+        assert_eq!(m.inverted_count(), 0);
+        let (r1, r2) = (m.region_volume(1), m.region_volume(2));
+        assert!((r1 - v_in).abs() / v_in < 0.03, "core {r1} vs {v_in}");
+        assert!(
+            (r2 - (v_out - v_in)).abs() / (v_out - v_in) < 0.03,
+            "shell {r2}"
+        );
+        for r in [1, 2] {
+            let topo = surface_topology(&m.boundary(BoundaryOf::Region(r)).surface);
+            assert!(topo.is_closed_oriented_manifold(), "{r}: {topo:?}");
+            // Core: one sphere; shell: two spheres (outer and the cavity).
+            assert_eq!(topo.euler, 2 * r as i64, "{r}: {topo:?}");
+        }
     }
 }

@@ -290,3 +290,70 @@ fn bad_parameters_are_errors() {
         Err(MesherError::Empty { .. })
     ));
 }
+
+/// A core ball (region 1, radius 1) inside a shell (region 2, radii 1..2).
+struct CoreShell;
+
+impl LabelledDomain for CoreShell {
+    fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        (Point3::new(-2., -2., -2.), Point3::new(2., 2., 2.))
+    }
+    fn region_count(&self) -> u16 {
+        2
+    }
+    fn label(&self, p: &Point3<f64>) -> u16 {
+        match p.coords.norm() {
+            r if r < 1.0 => 1,
+            r if r < 2.0 => 2,
+            _ => 0,
+        }
+    }
+    fn signed_distance(&self, region: u16, p: &Point3<f64>) -> f64 {
+        let r = p.coords.norm();
+        if region == 1 {
+            r - 1.0
+        } else {
+            (r - 2.0).max(1.0 - r)
+        }
+    }
+}
+
+#[test]
+fn curved_interface_between_core_and_shell_conforms() {
+    let out = mesh_domain(&CoreShell, &params(0.2)).unwrap();
+    let mesh = &out.mesh;
+    check_mesh(mesh);
+    let ball = |r: f64| 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
+    let (v1, v2) = (mesh.region_volume(1), mesh.region_volume(2));
+    assert!((v1 - ball(1.0)).abs() / ball(1.0) < 0.02, "core {v1}");
+    assert!(
+        (v2 - (ball(2.0) - ball(1.0))).abs() / (ball(2.0) - ball(1.0)) < 0.02,
+        "shell {v2}"
+    );
+    // The core's whole boundary is the interface: every core boundary face is a shell face,
+    // with its nodes on the unit sphere.
+    let core = mesh.boundary(BoundaryOf::Region(1));
+    let shell = mesh.boundary(BoundaryOf::Region(2));
+    let key = |f: &[u32; 3]| {
+        let mut k = *f;
+        k.sort_unstable();
+        k
+    };
+    let shell_faces: std::collections::HashSet<[u32; 3]> =
+        node_faces(&shell).iter().map(key).collect();
+    assert!(
+        node_faces(&core)
+            .iter()
+            .all(|f| shell_faces.contains(&key(f)))
+    );
+    let offsets: Vec<f64> = core
+        .surface
+        .vertices
+        .iter()
+        .map(|p| (p.coords.norm() - 1.0).abs())
+        .collect();
+    let mean = offsets.iter().sum::<f64>() / offsets.len() as f64;
+    assert!(mean < 0.05 * out.report.spacing_mm, "mean offset {mean}");
+    let topo = surface_topology(&shell.surface);
+    assert_eq!((topo.components, topo.euler), (2, 4));
+}
