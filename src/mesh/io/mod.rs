@@ -87,4 +87,6 @@ pub(crate) fn check_indices(
 #[cfg(test)]
 mod meshio_check;
 #[cfg(test)]
+mod robustness;
+#[cfg(test)]
 pub(crate) mod test_meshes;

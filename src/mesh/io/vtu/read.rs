@@ -93,13 +93,13 @@ pub fn read_vtu(path: &Path) -> Result<(VolumeMesh, Vec<CellArray>), MeshIoError
     let coords = points
         .first()
         .ok_or_else(|| MeshIoError::parse(path, "<Points>", "one DataArray"))?;
-    if coords.values.len() != 3 * n_points {
+    if Some(coords.values.len()) != n_points.checked_mul(3) {
         return Err(MeshIoError::parse(
             path,
             coords.at(),
             format!(
                 "{} coordinates (3 × NumberOfPoints), found {}",
-                3 * n_points,
+                n_points.saturating_mul(3),
                 coords.values.len()
             ),
         ));
