@@ -309,4 +309,31 @@ mod tests {
             assert_eq!(topo.euler, 2 * r as i64, "{r}: {topo:?}");
         }
     }
+
+    #[test]
+    fn keeps_the_stapes_arch_of_a_ct_derived_chain() {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/anatomy/vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj");
+        if !path.exists() {
+            eprintln!("skipped: {} not found", path.display());
+            return;
+        }
+        let surface = crate::mesh::io::obj::read_obj(&path).unwrap();
+        // Genus 1 (the hole of the stapes arch), 56.2 mm³ (data README).
+        assert_eq!(surface_topology(&surface).euler, 0);
+        let exact = surface.signed_volume();
+        let domain = SurfaceDomain::new(&[surface]).unwrap();
+        let params = MesherParams {
+            thin_regions: vec![1],
+            ..MesherParams::default()
+        };
+        let out = mesh_domain(&domain, &params).unwrap();
+        let m = &out.mesh;
+        let topo = surface_topology(&m.boundary(BoundaryOf::Whole).surface);
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!((topo.components, topo.euler), (1, 0), "arch lost: {topo:?}");
+        let v = m.volume();
+        assert!((v - exact).abs() / exact < 0.03, "volume {v} vs {exact}");
+        assert_eq!(m.inverted_count(), 0);
+    }
 }
