@@ -29,6 +29,7 @@
 mod closest;
 mod label;
 pub mod lattice;
+mod peel;
 mod repair;
 mod snap;
 mod surface_domain;
@@ -75,6 +76,8 @@ pub struct MesherReport {
     pub spacing_mm: f64,
     pub lattice_tets: usize,
     pub repair: RepairOutcome,
+    /// Tets handed to the outside because they would lie flat on the surface.
+    pub peeled: usize,
     pub snap: SnapOutcome,
 }
 
@@ -167,14 +170,32 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
     let lattice = Lattice::new(&lo, &hi, h, pad);
     let mut labels = label::label_tets(domain, &lattice, &params.thin_regions);
     let adj = NodeTets::new(lattice.nodes.len(), &lattice.tets);
-    let repair = repair::make_manifold(&lattice, &adj, &mut labels, &params.thin_regions, 50);
+    let thin = &params.thin_regions;
+    let mut repair = repair::make_manifold(&lattice, &adj, &mut labels, thin, 50);
+    let mut targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
+    let peeled = peel::peel_flat_caps(
+        &lattice.nodes,
+        &lattice.tets,
+        &mut labels,
+        &adj,
+        &targets,
+        params.min_dihedral_deg,
+        thin,
+    );
+    if peeled > 0 {
+        let again = repair::make_manifold(&lattice, &adj, &mut labels, thin, 50);
+        repair.relabelled += again.relabelled;
+        repair.sweeps += again.sweeps;
+        repair.defects_left = again.defects_left;
+        targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
+    }
     let mut positions = lattice.nodes.clone();
     let snap = snap::snap_to_interfaces(
-        domain,
         &mut positions,
         &lattice.tets,
         &labels,
         &adj,
+        &targets,
         h,
         params,
     );
@@ -212,6 +233,7 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
             spacing_mm: h,
             lattice_tets: lattice.tets.len(),
             repair,
+            peeled,
             snap,
         },
     })

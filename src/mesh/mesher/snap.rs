@@ -124,17 +124,22 @@ fn worst_angle_at(
     worst
 }
 
-/// Snaps boundary nodes of the labelled lattice onto the domain's interfaces, in place.
-pub fn snap_to_interfaces<D: LabelledDomain + ?Sized>(
+/// Nodes on a region boundary (incident tets with two or more labels, 0 included, at least
+/// one non-zero) with their interface targets (`None` where the projection failed).
+pub struct Targets {
+    pub nodes: Vec<u32>,
+    pub goals: Vec<Option<Point3<f64>>>,
+}
+
+/// Finds the boundary nodes and projects them onto their interfaces (in parallel; the result
+/// does not depend on the thread count).
+pub fn interface_targets<D: LabelledDomain + ?Sized>(
     domain: &D,
-    nodes: &mut [Point3<f64>],
-    tets: &[[u32; 4]],
+    nodes: &[Point3<f64>],
     labels: &[u16],
     adj: &NodeTets,
     h: f64,
-    params: &MesherParams,
-) -> SnapOutcome {
-    // Boundary nodes with their label sets, then targets in parallel (order-independent).
+) -> Targets {
     let boundary: Vec<(u32, Vec<u16>)> = (0..nodes.len())
         .filter_map(|v| {
             let incident = adj.of(v);
@@ -144,19 +149,35 @@ pub fn snap_to_interfaces<D: LabelledDomain + ?Sized>(
             (set.len() >= 2 && set.iter().any(|&l| l != 0)).then_some((v as u32, set))
         })
         .collect();
-    let targets: Vec<Option<Point3<f64>>> = boundary
+    let goals = boundary
         .par_iter()
         .map(|(v, set)| {
             let p = nodes[*v as usize];
             target(domain, set, p, h).filter(|q| (q - p).norm() <= 1.5 * h)
         })
         .collect();
+    Targets {
+        nodes: boundary.into_iter().map(|(v, _)| v).collect(),
+        goals,
+    }
+}
 
+/// Moves the boundary nodes toward their `targets`, in place, under the dihedral guard.
+pub fn snap_to_interfaces(
+    nodes: &mut [Point3<f64>],
+    tets: &[[u32; 4]],
+    labels: &[u16],
+    adj: &NodeTets,
+    targets: &Targets,
+    h: f64,
+    params: &MesherParams,
+) -> SnapOutcome {
+    let (boundary, targets) = (&targets.nodes, &targets.goals);
     let min_angle = params.min_dihedral_deg.to_radians();
     let mut done = vec![false; boundary.len()];
     for _ in 0..params.snap_sweeps {
         let mut moved_any = false;
-        for (i, (v, _)) in boundary.iter().enumerate() {
+        for (i, v) in boundary.iter().enumerate() {
             let Some(goal) = targets[i] else { continue };
             if done[i] {
                 continue;
@@ -182,7 +203,7 @@ pub fn snap_to_interfaces<D: LabelledDomain + ?Sized>(
         ..SnapOutcome::default()
     };
     let mut sum = 0.0;
-    for (i, (v, _)) in boundary.iter().enumerate() {
+    for (i, v) in boundary.iter().enumerate() {
         let offset = targets[i].map_or(h, |goal| (goal - nodes[*v as usize]).norm());
         if done[i] {
             out.snapped += 1;
