@@ -13,8 +13,13 @@
 //! 2. `label`: each tet takes the label at its centroid; regions listed as thin win a tet if
 //!    they own any of five sample points inside it.
 //! 3. `repair`: tets are relabelled until every region's boundary is a 2-manifold.
-//! 4. `snap`: nodes on a region boundary move onto the interface (Newton projection on
+//! 4. `peel`: tets that would lie flat on the outer surface once snapped go to the outside
+//!    (then `repair` runs again).
+//! 5. `snap`: nodes on a region boundary move onto the interface (Newton projection on
 //!    signed-distance differences), as far as keeping every dihedral angle ≥ the minimum allows.
+//!
+//! Measured (`examples/bench_mesher.rs`): 98–100 % of boundary nodes reach the interface, mean
+//! offset < 0.001 mm; min dihedral ≥ the guard (10° by default), median of per-tet minimum 60°.
 //!
 //! Minimum feature size: a structure survives as a connected set of tets when it is at least
 //! about `0.7 h` thick (centroid rule; thinner sheets get holes), or about `0.4 h` for a region listed in
