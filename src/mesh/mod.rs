@@ -2,9 +2,15 @@
 //! consumes, and mesh file formats.
 
 pub mod domain;
+pub mod io;
 pub mod isosurface;
+pub mod mesher;
+pub mod quality;
 pub mod shapes;
 pub mod surface;
+pub mod tet;
+pub mod topology;
 
 pub use domain::LabelledDomain;
 pub use surface::TriMesh;
+pub use tet::TetMesh;

@@ -1,0 +1,164 @@
+//! Tetrahedron quality: dihedral angles and the radius–edge ratio (circumradius over shortest
+//! edge; √6/4 ≈ 0.612 for the regular tet), per tet and summarised per region.
+//!
+//! Dihedral angle at an edge = π − angle between the outward normals of the two faces that
+//! meet there (Shewchuk, "What is a good linear finite element?", 2002). Circumcentre of
+//! `a + x` with `u, v, w` the edges from `a`:
+//! `x = (|u|² v×w + |v|² w×u + |w|² u×v) / (2 u·(v×w))`.
+
+use nalgebra::{Point3, Vector3};
+
+use super::TetMesh;
+use super::tet::TET_FACES;
+
+/// Quality summary of a set of tets. Angles in degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct QualityStats {
+    pub tets: usize,
+    /// Smallest dihedral angle over all tets.
+    pub min_dihedral_deg: f64,
+    /// Median over tets of each tet's smallest dihedral angle.
+    pub median_min_dihedral_deg: f64,
+    /// Largest dihedral angle over all tets.
+    pub max_dihedral_deg: f64,
+    /// Median radius–edge ratio.
+    pub median_radius_edge: f64,
+    /// Largest radius–edge ratio (infinite for a degenerate tet).
+    pub max_radius_edge: f64,
+}
+
+/// Smallest and largest dihedral angle (radians) of the tet `p` (any orientation).
+pub fn dihedral_range(p: &[Point3<f64>; 4]) -> (f64, f64) {
+    let sign = if (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let normals: [Vector3<f64>; 4] = TET_FACES.map(|[a, b, c]| {
+        let n = (p[b] - p[a]).cross(&(p[c] - p[a])) * sign;
+        let len = n.norm();
+        if len > 0.0 { n / len } else { n }
+    });
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let cos = normals[i].dot(&normals[j]).clamp(-1.0, 1.0);
+            let angle = std::f64::consts::PI - cos.acos();
+            lo = lo.min(angle);
+            hi = hi.max(angle);
+        }
+    }
+    (lo, hi)
+}
+
+/// Circumradius over shortest edge of the tet `p` (infinite when degenerate).
+pub fn radius_edge_ratio(p: &[Point3<f64>; 4]) -> f64 {
+    let (u, v, w) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
+    let denom = 2.0 * u.dot(&v.cross(&w));
+    if denom == 0.0 {
+        return f64::INFINITY;
+    }
+    let x = (v.cross(&w) * u.norm_squared()
+        + w.cross(&u) * v.norm_squared()
+        + u.cross(&v) * w.norm_squared())
+        / denom;
+    let mut shortest = f64::INFINITY;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            shortest = shortest.min((p[i] - p[j]).norm());
+        }
+    }
+    x.norm() / shortest
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_unstable_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// Quality summary of the tets for which `keep(t)` holds.
+pub fn quality_stats(mesh: &TetMesh, keep: impl Fn(usize) -> bool) -> QualityStats {
+    let mut min_dihedrals = Vec::new();
+    let mut ratios = Vec::new();
+    let mut stats = QualityStats {
+        min_dihedral_deg: f64::INFINITY,
+        ..QualityStats::default()
+    };
+    for t in (0..mesh.tets.len()).filter(|&t| keep(t)) {
+        let p = mesh.corners(t);
+        let (lo, hi) = dihedral_range(&p);
+        stats.min_dihedral_deg = stats.min_dihedral_deg.min(lo.to_degrees());
+        stats.max_dihedral_deg = stats.max_dihedral_deg.max(hi.to_degrees());
+        min_dihedrals.push(lo.to_degrees());
+        ratios.push(radius_edge_ratio(&p));
+    }
+    stats.tets = ratios.len();
+    stats.median_min_dihedral_deg = median(&mut min_dihedrals);
+    stats.median_radius_edge = median(&mut ratios);
+    stats.max_radius_edge = ratios.last().copied().unwrap_or(f64::NAN);
+    if stats.tets == 0 {
+        stats.min_dihedral_deg = f64::NAN;
+    }
+    stats
+}
+
+/// Quality of each region present in `mesh`, in ascending region order.
+pub fn quality_by_region(mesh: &TetMesh) -> Vec<(u16, QualityStats)> {
+    mesh.region_ids()
+        .into_iter()
+        .map(|r| (r, quality_stats(mesh, |t| mesh.regions[t] == r)))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn regular() -> [Point3<f64>; 4] {
+        [
+            Point3::new(1., 1., 1.),
+            Point3::new(1., -1., -1.),
+            Point3::new(-1., 1., -1.),
+            Point3::new(-1., -1., 1.),
+        ]
+    }
+
+    #[test]
+    fn regular_tet_has_the_textbook_values() {
+        let (lo, hi) = dihedral_range(&regular());
+        let expected = (1.0f64 / 3.0).acos();
+        assert!((lo - expected).abs() < 1e-12 && (hi - expected).abs() < 1e-12);
+        assert!((radius_edge_ratio(&regular()) - 6f64.sqrt() / 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn corner_tet_has_right_angles() {
+        let p = [
+            Point3::new(0., 0., 0.),
+            Point3::new(1., 0., 0.),
+            Point3::new(0., 1., 0.),
+            Point3::new(0., 0., 1.),
+        ];
+        let (lo, hi) = dihedral_range(&p);
+        // Three 90° edges at the corner; the others are acos(1/√3) ≈ 54.7°.
+        assert!((hi.to_degrees() - 90.0).abs() < 1e-9);
+        assert!((lo - (1.0f64 / 3f64.sqrt()).acos()).abs() < 1e-12);
+        // Circumcentre (½,½,½): R = √3/2, shortest edge 1.
+        assert!((radius_edge_ratio(&p) - 3f64.sqrt() / 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn flat_tet_is_degenerate() {
+        let p = [
+            Point3::new(0., 0., 0.),
+            Point3::new(1., 0., 0.),
+            Point3::new(0., 1., 0.),
+            Point3::new(0.25, 0.25, 0.),
+        ];
+        assert!(radius_edge_ratio(&p).is_infinite());
+        assert!(dihedral_range(&p).0 < 1e-9);
+    }
+}
