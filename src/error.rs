@@ -25,6 +25,8 @@ pub enum Error {
     Case(#[from] crate::pipeline::case::CaseNotFound),
     #[error(transparent)]
     MeshDev(#[from] crate::meshdev::MeshDevError),
+    #[error(transparent)]
+    MeshIo(#[from] crate::mesh::io::MeshIoError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -43,6 +45,7 @@ impl Error {
             | Error::Config(_)
             | Error::Landmark(_)
             | Error::Case(_)
+            | Error::MeshIo(_)
             | Error::Usage(_) => ExitStatus::BadInput,
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }

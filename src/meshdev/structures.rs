@@ -4,8 +4,13 @@
 //! side is the union of its parts).
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
+use crate::Error;
+use crate::config::IngestConfig;
+use crate::image::nifti::is_nifti_path;
 use crate::mesh::TriMesh;
+use crate::mesh::io::{obj, ply, stl, vtu};
 use crate::mesh::isosurface::label_surface;
 
 /// The label numbers of the project's label maps (phantom segmentations).
@@ -48,6 +53,124 @@ pub fn structures_from_labels(
                 volume.index_to_world_matrix(),
             ),
         })
+        .collect()
+}
+
+/// Mesh file extensions read as one structure each (named by the file stem).
+const MESH_EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
+
+fn mesh_extension(path: &Path) -> Option<String> {
+    let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+    MESH_EXTENSIONS.contains(&ext.as_str()).then_some(ext)
+}
+
+/// Reads one surface mesh file (PLY, STL, OBJ, or the triangles of a VTU).
+pub fn read_surface(path: &Path) -> Result<TriMesh, Error> {
+    Ok(match mesh_extension(path).as_deref() {
+        Some("ply") => ply::read_ply(path)?.0,
+        Some("stl") => stl::read_stl(path)?,
+        Some("obj") => obj::read_obj(path)?,
+        Some("vtu") => {
+            let (volume, _) = vtu::read_vtu(path)?;
+            TriMesh {
+                vertices: volume.tets.nodes,
+                triangles: volume.triangles,
+            }
+        }
+        _ => {
+            return Err(Error::Usage(format!(
+                "{}: not a surface mesh; expected .ply, .stl, .obj or .vtu",
+                path.display()
+            )));
+        }
+    })
+}
+
+/// The structures at `path`: a mesh file (one structure, named by its stem), a label map
+/// (one per label of `labels`), or a folder of such files (meshes preferred; a label map is
+/// used when the folder holds no mesh).
+pub fn load_structures(
+    path: &Path,
+    labels: &[(u16, String)],
+    ingest: &IngestConfig,
+) -> Result<Vec<Structure>, Error> {
+    let stem = |p: &Path| {
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        name.split('.').next().unwrap_or_default().to_string()
+    };
+    if !path.exists() {
+        return Err(Error::Usage(format!(
+            "{}: no such file or folder",
+            path.display()
+        )));
+    }
+    if path.is_file() {
+        if is_nifti_path(path) {
+            let image = crate::image::load(path, None, ingest)?;
+            return Ok(structures_from_labels(&image.volume, labels));
+        }
+        return Ok(vec![Structure {
+            name: stem(path),
+            mesh: read_surface(path)?,
+        }]);
+    }
+    let mut entries: Vec<_> = std::fs::read_dir(path)
+        .map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    entries.sort();
+    let meshes: Vec<&std::path::PathBuf> = entries
+        .iter()
+        .filter(|p| mesh_extension(p).is_some())
+        .collect();
+    if !meshes.is_empty() {
+        return meshes
+            .into_iter()
+            .map(|p| {
+                Ok(Structure {
+                    name: stem(p),
+                    mesh: read_surface(p)?,
+                })
+            })
+            .collect();
+    }
+    match entries.iter().find(|p| is_nifti_path(p)) {
+        Some(map) => load_structures(map, labels, ingest),
+        None => Err(Error::Usage(format!(
+            "{}: no surface mesh (.ply, .stl, .obj, .vtu) or label map (.nii, .nii.gz) found",
+            path.display()
+        ))),
+    }
+}
+
+/// Parses a label table such as "1=malleus,2=incus".
+pub fn parse_label_table(text: &str) -> Result<Vec<(u16, String)>, String> {
+    text.split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|item| {
+            let (label, name) = item
+                .split_once('=')
+                .ok_or_else(|| format!("{item:?}: expected LABEL=NAME"))?;
+            let label = label.trim().parse::<u16>().map_err(|_| {
+                format!("{item:?}: the label must be a whole number from 0 to 65535")
+            })?;
+            Ok((label, name.trim().to_string()))
+        })
+        .collect()
+}
+
+/// The default label table as owned pairs.
+pub fn default_label_table() -> Vec<(u16, String)> {
+    DEFAULT_LABELS
+        .iter()
+        .map(|(l, n)| (*l, n.to_string()))
         .collect()
 }
 
@@ -158,6 +281,20 @@ mod tests {
         assert!(unpaired.is_empty(), "{unpaired:?}");
         let (_, unpaired) = pair_structures(&[named("cochlea", 1.0)], &test, &BTreeMap::new());
         assert_eq!(unpaired.len(), 5);
+    }
+
+    #[test]
+    fn label_tables_parse_with_clear_errors() {
+        assert_eq!(
+            parse_label_table("1=malleus, 7 = TM").unwrap(),
+            vec![(1, "malleus".into()), (7, "TM".into())]
+        );
+        assert!(
+            parse_label_table("x=malleus")
+                .unwrap_err()
+                .contains("whole number")
+        );
+        assert!(parse_label_table("3").unwrap_err().contains("LABEL=NAME"));
     }
 
     #[test]
