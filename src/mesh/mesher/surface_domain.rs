@@ -4,11 +4,11 @@
 //! lower region wins, so region `r` is surface `r` minus all lower ones and its signed distance
 //! is the CSG difference `max(φ_r, −φ_s for s < r)` (sign-exact, 1-Lipschitz, a lower bound of
 //! the true distance away from the boundary). Distances and inside tests use a BVH and
-//! pseudonormals (`closest`).
+//! pseudonormals ([`SignedSurface`] of `mesh::spatial`).
 
 use nalgebra::Point3;
 
-use super::closest::SignedDistanceIndex;
+use crate::mesh::spatial::{SignedSurface, SpatialError};
 use crate::mesh::topology::surface_topology;
 use crate::mesh::{LabelledDomain, TriMesh};
 
@@ -33,12 +33,18 @@ pub enum SurfaceDomainError {
         "region {region} surface encloses a non-positive volume ({volume} mm³); expected outward-facing triangles"
     )]
     InsideOut { region: u16, volume: f64 },
+    #[error("region {region}: {source}")]
+    Invalid {
+        region: u16,
+        #[source]
+        source: SpatialError,
+    },
 }
 
 /// Regions bounded by closed triangle surfaces.
 #[derive(Debug, Clone)]
 pub struct SurfaceDomain {
-    regions: Vec<SignedDistanceIndex>,
+    regions: Vec<SignedSurface>,
     lo: Point3<f64>,
     hi: Point3<f64>,
 }
@@ -71,7 +77,8 @@ impl SurfaceDomain {
             if volume.is_nan() || volume <= 0.0 {
                 return Err(SurfaceDomainError::InsideOut { region, volume });
             }
-            let index = SignedDistanceIndex::new(s);
+            let index = SignedSurface::new(s, "surface")
+                .map_err(|source| SurfaceDomainError::Invalid { region, source })?;
             let (a, b) = index.bounds();
             lo = lo.inf(&a);
             hi = hi.sup(&b);
