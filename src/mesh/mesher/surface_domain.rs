@@ -130,6 +130,7 @@ impl LabelledDomain for SurfaceDomain {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::io::test_meshes::cube_surface as cube;
     use crate::mesh::mesher::{MesherParams, mesh_domain};
     use crate::mesh::tet::BoundaryOf;
 
@@ -163,28 +164,6 @@ mod tests {
             }
         }
         m
-    }
-
-    /// Unit cube `[0,1]³` with outward triangles.
-    fn cube() -> TriMesh {
-        let v = |i: u32| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
-        TriMesh {
-            vertices: (0..8).map(v).collect(),
-            triangles: vec![
-                [0, 2, 1],
-                [1, 2, 3],
-                [4, 5, 6],
-                [5, 7, 6],
-                [0, 1, 4],
-                [1, 5, 4],
-                [2, 6, 3],
-                [3, 6, 7],
-                [0, 4, 2],
-                [2, 4, 6],
-                [1, 3, 5],
-                [3, 7, 5],
-            ],
-        }
     }
 
     #[test]
