@@ -5,6 +5,8 @@
 //! (median of 5) and of its parts; add `-- --trimesh` to time Python trimesh's
 //! `proximity.closest_point` on the same samples once (slow) and print the speed-up.
 
+#[path = "../tests/common/python.rs"]
+mod python;
 #[path = "../tests/common/trimesh_io.rs"]
 mod trimesh_io;
 

@@ -4,6 +4,7 @@
 //! pseudonormal sign against exact box and torus signed distances.
 
 use nalgebra::Point3;
+use otoatlas::mesh::spatial::SpatialError;
 use otoatlas::mesh::{TriMesh, shapes};
 use otoatlas::meshdev::{CompareOptions, Feature, MeshDevError, Sampling, SignedSurface, compare};
 
@@ -390,6 +391,6 @@ fn results_are_deterministic_and_bad_input_is_reported() {
     );
     assert_eq!(
         compare(&TriMesh::default(), &b, &opts).unwrap_err(),
-        MeshDevError::Empty { mesh: "test" }
+        MeshDevError::Spatial(SpatialError::Empty { mesh: "test" })
     );
 }

@@ -7,6 +7,7 @@ pub mod isosurface;
 pub mod mesher;
 pub mod quality;
 pub mod shapes;
+pub mod spatial;
 pub mod surface;
 pub mod tet;
 pub mod topology;

@@ -3,40 +3,30 @@
 //! MASD (headline), ASSD, RMS, HD, HD95, signed bias, Surface Dice@τ, and the MeshDev-mode
 //! one-sided per-vertex mean and max (Roy, Foufou & Truchetet 2004, §3.4 of the note).
 //!
-//! * Distances are exact point-to-triangle distances (`closest`, Ericson's region method)
-//!   found through our own SAH bounding-volume hierarchy (`bvh`).
-//! * Signs come from the reference's angle-weighted pseudonormals (`sign`, Bærentzen &
-//!   Aanæs 2005); positive = test outside the reference.
+//! * Distances are exact point-to-triangle distances (Ericson's region method) found through
+//!   our own SAH bounding-volume hierarchy, both in `mesh::spatial` (which also holds the
+//!   measurements that chose it over `parry3d-f64`).
+//! * Signs come from the reference's angle-weighted pseudonormals (`mesh::spatial`,
+//!   Bærentzen & Aanæs 2005); positive = test outside the reference.
 //! * Both surfaces are sampled by area (`sampling`), each sample weighted by its area;
 //!   statistics follow `stats`; the per-vertex deviation map is coloured by `colormap`.
 //!
-//! Closest-point engine: our own BVH, not `parry3d-f64` 0.31. Measured with a throwaway
-//! probe on this 2-core machine while other builds ran (load average ≈ 10), 100,000-triangle
-//! torus, 200,000 queries (90 % near the surface, 10 % up to 10 mm away), one thread, thread
-//! CPU time per query: ours 2.05–2.25 µs, parry 3.55–4.30 µs (wall 3.9–5.9 µs against
-//! 7.3–10.8 µs); build wall 120–170 ms against 195–280 ms; distances equal to 3.6e-15 mm.
-//! Ours also returns the hit feature the pseudonormal sign needs, and adds no dependency
-//! (parry 0.31 brings glam/glamx).
-//!
 //! Every result is deterministic: samples depend only on the seed, sums run in a fixed order.
 
-pub mod bvh;
-pub mod closest;
 pub mod colormap;
 pub mod error;
 pub mod sampling;
-pub mod sign;
 pub mod stats;
 pub mod structures;
 
 use rayon::prelude::*;
 
-pub use bvh::{Bvh, ClosestHit};
-pub use closest::{Feature, closest_point_on_triangle};
+pub use crate::mesh::spatial::{
+    Bvh, ClosestHit, Feature, Pseudonormals, SignedSurface, closest_point_on_triangle,
+};
 pub use colormap::ColourRange;
 pub use error::MeshDevError;
 pub use sampling::{MAX_SAMPLES, Samples, Sampling, sample_surface};
-pub use sign::Pseudonormals;
 pub use stats::{Directed, SurfaceDistances};
 
 use crate::mesh::TriMesh;
@@ -88,32 +78,6 @@ pub struct DeviationMap {
 pub struct Comparison {
     pub distances: SurfaceDistances,
     pub deviation: DeviationMap,
-}
-
-/// A surface indexed for signed closest-point queries.
-#[derive(Debug, Clone)]
-pub struct SignedSurface {
-    pub bvh: Bvh,
-    pub normals: Pseudonormals,
-}
-
-impl SignedSurface {
-    /// Indexes `mesh`; `role` names it in errors.
-    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, MeshDevError> {
-        let (bvh, normals) =
-            rayon::join(|| Bvh::new(mesh, role), || Pseudonormals::new(mesh, role));
-        Ok(SignedSurface {
-            bvh: bvh?,
-            normals: normals?,
-        })
-    }
-
-    /// Signed distance of `p` (mm): positive outside, negative inside.
-    #[inline]
-    pub fn signed_distance(&self, p: &nalgebra::Point3<f64>) -> f64 {
-        let hit = self.bvh.closest(p);
-        self.normals.signed_distance(p, &hit)
-    }
 }
 
 fn require_area(mesh: &TriMesh, role: &'static str) -> Result<(), MeshDevError> {

@@ -18,9 +18,9 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::bvh::validate_mesh;
 use super::error::MeshDevError;
 use crate::mesh::TriMesh;
+use crate::mesh::spatial::validate_mesh;
 
 /// Fewest samples the default count gives (per surface).
 pub const MIN_DEFAULT_SAMPLES: usize = 10_000;

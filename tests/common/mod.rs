@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod meshes;
+pub mod python;
 #[allow(unused_imports)]
 pub use meshes::*;
 
@@ -66,34 +67,7 @@ pub fn assert_close(actual: &[f64], expected: &[f64], tol: f64, what: &str) {
     }
 }
 
-/// Runs `python3 tests/python/SCRIPT ARGS`. Returns false (and says why) when python3 or a
-/// needed package is missing, unless `OTOATLAS_REQUIRE_PYTHON=1` (CI), which makes it a failure.
+/// Runs `python3 tests/python/SCRIPT ARGS` (see `python::run_python`); false when skipped.
 pub fn python_check(script: &str, args: &[&str], packages: &[&str]) -> bool {
-    let probe = format!("import {}", packages.join(", "));
-    let ok = Command::new("python3")
-        .args(["-c", &probe])
-        .output()
-        .map(|o| o.status.success());
-    if !matches!(ok, Ok(true)) {
-        if std::env::var("OTOATLAS_REQUIRE_PYTHON").as_deref() == Ok("1") {
-            panic!(
-                "python3 with {packages:?} is required (pip install {})",
-                packages.join(" ")
-            );
-        }
-        eprintln!("skipped: python3 with {packages:?} not available");
-        return false;
-    }
-    let out = Command::new("python3")
-        .arg(root().join("tests/python").join(script))
-        .args(args)
-        .output()
-        .expect("run python3");
-    assert!(
-        out.status.success(),
-        "{script} failed:\n{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    true
+    python::run_python(script, args, packages).is_some()
 }

@@ -1,14 +1,16 @@
 //! Shared by the trimesh cross-check test and the benchmark: writes meshes (OBJ) and weighted
-//! samples as text, runs `tests/python/trimesh_check.py`, and reads its JSON answer. Skips
-//! (returns `None`, saying why) when python3 or trimesh is missing, unless
-//! `OTOATLAS_REQUIRE_PYTHON=1`, in which case that is a failure.
+//! samples as text, runs `tests/python/trimesh_check.py` (through `python::run_python`, so it
+//! skips, saying why, when python3 or trimesh is missing, unless `OTOATLAS_REQUIRE_PYTHON=1`,
+//! in which case that is a failure), and reads its JSON answer. Users declare the sibling
+//! module `python` next to this one.
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::Command;
 
 use otoatlas::mesh::TriMesh;
 use otoatlas::meshdev::Samples;
+
+use super::python::run_python;
 
 /// One direction as trimesh computed it.
 pub struct TrimeshDirected {
@@ -45,14 +47,6 @@ pub fn write_samples(path: &Path, samples: &Samples) {
     std::fs::write(path, s).unwrap();
 }
 
-fn skip(why: &str) -> Option<TrimeshResult> {
-    if std::env::var("OTOATLAS_REQUIRE_PYTHON").as_deref() == Ok("1") {
-        panic!("OTOATLAS_REQUIRE_PYTHON=1 but {why}");
-    }
-    eprintln!("skipping the trimesh cross-check: {why}");
-    None
-}
-
 fn directed(v: &serde_json::Value) -> TrimeshDirected {
     TrimeshDirected {
         mean: v["mean"].as_f64().unwrap(),
@@ -75,19 +69,6 @@ pub fn run_trimesh_check(
     test_samples: &Samples,
     reference_samples: &Samples,
 ) -> Option<TrimeshResult> {
-    let probe = Command::new("python3")
-        .args(["-c", "import numpy, scipy, rtree, trimesh"])
-        .output();
-    match probe {
-        Err(e) => return skip(&format!("python3 cannot be run ({e})")),
-        Ok(o) if !o.status.success() => {
-            return skip(&format!(
-                "python3 lacks numpy/scipy/rtree/trimesh: {}",
-                String::from_utf8_lossy(&o.stderr).trim()
-            ));
-        }
-        Ok(_) => {}
-    }
     let paths = [
         "test.obj",
         "ref.obj",
@@ -100,17 +81,11 @@ pub fn run_trimesh_check(
     write_obj(&paths[1], reference);
     write_samples(&paths[2], test_samples);
     write_samples(&paths[3], reference_samples);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/trimesh_check.py");
-    let out = Command::new("python3")
-        .arg(script)
-        .args(&paths)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "trimesh_check.py failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run_python(
+        "trimesh_check.py",
+        &paths,
+        &["numpy", "scipy", "rtree", "trimesh"],
+    )?;
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&paths[4]).unwrap()).unwrap();
     Some(TrimeshResult {

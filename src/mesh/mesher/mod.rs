@@ -31,7 +31,6 @@
 //! Deterministic: labels and interface targets are computed in parallel into index-ordered
 //! vectors; repair and guarded moves run sequentially in node order.
 
-mod closest;
 mod label;
 pub mod lattice;
 mod peel;

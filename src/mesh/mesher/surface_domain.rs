@@ -4,11 +4,11 @@
 //! lower region wins, so region `r` is surface `r` minus all lower ones and its signed distance
 //! is the CSG difference `max(φ_r, −φ_s for s < r)` (sign-exact, 1-Lipschitz, a lower bound of
 //! the true distance away from the boundary). Distances and inside tests use a BVH and
-//! pseudonormals (`closest`).
+//! pseudonormals ([`SignedSurface`] of `mesh::spatial`).
 
 use nalgebra::Point3;
 
-use super::closest::SignedDistanceIndex;
+use crate::mesh::spatial::{SignedSurface, SpatialError};
 use crate::mesh::topology::surface_topology;
 use crate::mesh::{LabelledDomain, TriMesh};
 
@@ -33,12 +33,18 @@ pub enum SurfaceDomainError {
         "region {region} surface encloses a non-positive volume ({volume} mm³); expected outward-facing triangles"
     )]
     InsideOut { region: u16, volume: f64 },
+    #[error("region {region}: {source}")]
+    Invalid {
+        region: u16,
+        #[source]
+        source: SpatialError,
+    },
 }
 
 /// Regions bounded by closed triangle surfaces.
 #[derive(Debug, Clone)]
 pub struct SurfaceDomain {
-    regions: Vec<SignedDistanceIndex>,
+    regions: Vec<SignedSurface>,
     lo: Point3<f64>,
     hi: Point3<f64>,
 }
@@ -71,7 +77,8 @@ impl SurfaceDomain {
             if volume.is_nan() || volume <= 0.0 {
                 return Err(SurfaceDomainError::InsideOut { region, volume });
             }
-            let index = SignedDistanceIndex::new(s);
+            let index = SignedSurface::new(s, "surface")
+                .map_err(|source| SurfaceDomainError::Invalid { region, source })?;
             let (a, b) = index.bounds();
             lo = lo.inf(&a);
             hi = hi.sup(&b);
@@ -123,6 +130,7 @@ impl LabelledDomain for SurfaceDomain {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::io::test_meshes::cube_surface as cube;
     use crate::mesh::mesher::{MesherParams, mesh_domain};
     use crate::mesh::tet::BoundaryOf;
 
@@ -156,28 +164,6 @@ mod tests {
             }
         }
         m
-    }
-
-    /// Unit cube `[0,1]³` with outward triangles.
-    fn cube() -> TriMesh {
-        let v = |i: u32| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
-        TriMesh {
-            vertices: (0..8).map(v).collect(),
-            triangles: vec![
-                [0, 2, 1],
-                [1, 2, 3],
-                [4, 5, 6],
-                [5, 7, 6],
-                [0, 1, 4],
-                [1, 5, 4],
-                [2, 6, 3],
-                [3, 6, 7],
-                [0, 4, 2],
-                [2, 4, 6],
-                [1, 3, 5],
-                [3, 7, 5],
-            ],
-        }
     }
 
     #[test]

@@ -12,9 +12,9 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use super::bvh::{ClosestHit, validate_mesh};
+use super::bvh::ClosestHit;
 use super::closest::Feature;
-use super::error::MeshDevError;
+use super::error::{SpatialError, validate_mesh};
 use crate::mesh::TriMesh;
 
 /// Face, edge and vertex pseudonormals of one surface.
@@ -35,7 +35,7 @@ fn corner_angle(a: &Point3<f64>, b: &Point3<f64>, c: &Point3<f64>) -> f64 {
 
 impl Pseudonormals {
     /// Computes the pseudonormals of `mesh`; `role` names the mesh in errors.
-    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, MeshDevError> {
+    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, SpatialError> {
         validate_mesh(mesh, role)?;
         let n = mesh.triangles.len();
         let face: Vec<Vector3<f64>> = (0..n)

@@ -7,7 +7,7 @@
 //! a query uses a fixed-size stack: no allocation per query.
 //!
 //! Chosen over `parry3d-f64` 0.31 after measuring both on the same meshes and queries; see
-//! the module documentation of `meshdev` for the figures.
+//! the module documentation of `mesh::spatial` for the figures.
 
 mod build;
 
@@ -15,7 +15,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 use super::closest::{Feature, closest_point_on_triangle};
-use super::error::MeshDevError;
+use super::error::{SpatialError, validate_mesh};
 use crate::mesh::TriMesh;
 
 /// Depth of the query stack; the build keeps the tree shallower (see `build`).
@@ -52,38 +52,6 @@ pub struct Bvh {
     ids: Vec<u32>,
 }
 
-/// Checks that `mesh` can be indexed: triangles present, indices in range, finite vertices.
-pub(crate) fn validate_mesh(mesh: &TriMesh, role: &'static str) -> Result<(), MeshDevError> {
-    if mesh.triangles.is_empty() {
-        return Err(MeshDevError::Empty { mesh: role });
-    }
-    if u32::try_from(mesh.triangles.len()).is_err() {
-        return Err(MeshDevError::TooManyTriangles {
-            mesh: role,
-            count: mesh.triangles.len(),
-        });
-    }
-    let vertex_count = mesh.vertices.len();
-    for (triangle, tri) in mesh.triangles.iter().enumerate() {
-        if let Some(&index) = tri.iter().find(|&&i| i as usize >= vertex_count) {
-            return Err(MeshDevError::IndexOutOfRange {
-                mesh: role,
-                triangle,
-                index,
-                vertex_count,
-            });
-        }
-    }
-    if let Some(vertex) = mesh
-        .vertices
-        .iter()
-        .position(|v| !v.coords.iter().all(|x| x.is_finite()))
-    {
-        return Err(MeshDevError::NonFiniteVertex { mesh: role, vertex });
-    }
-    Ok(())
-}
-
 #[inline]
 fn box_distance2(node: &Node, p: &Point3<f64>) -> f64 {
     let mut d2 = 0.0;
@@ -96,7 +64,7 @@ fn box_distance2(node: &Node, p: &Point3<f64>) -> f64 {
 
 impl Bvh {
     /// Builds the index over `mesh`; `role` names the mesh in errors ("test", "reference").
-    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, MeshDevError> {
+    pub fn new(mesh: &TriMesh, role: &'static str) -> Result<Self, SpatialError> {
         validate_mesh(mesh, role)?;
         let (nodes, ids) = build::build(mesh);
         let corners = ids.par_iter().map(|&t| mesh.corners(t as usize)).collect();
@@ -105,6 +73,12 @@ impl Bvh {
             corners,
             ids,
         })
+    }
+
+    /// Axis-aligned bounds of the surface (lowest and highest corner, mm).
+    pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        let root = &self.nodes[0];
+        (Point3::from(root.lo), Point3::from(root.hi))
     }
 
     /// The exact closest point of the surface to `p`.
@@ -178,7 +152,7 @@ mod tests {
         let e = Bvh::new(&m, "reference").unwrap_err();
         assert!(matches!(
             e,
-            MeshDevError::IndexOutOfRange {
+            SpatialError::IndexOutOfRange {
                 mesh: "reference",
                 triangle: 3,
                 index: 99,
@@ -189,14 +163,14 @@ mod tests {
         m.vertices[2].y = f64::NAN;
         assert_eq!(
             Bvh::new(&m, "test").unwrap_err(),
-            MeshDevError::NonFiniteVertex {
+            SpatialError::NonFiniteVertex {
                 mesh: "test",
                 vertex: 2
             }
         );
         assert_eq!(
             Bvh::new(&TriMesh::default(), "test").unwrap_err(),
-            MeshDevError::Empty { mesh: "test" }
+            SpatialError::Empty { mesh: "test" }
         );
     }
 
