@@ -8,7 +8,7 @@
 
 use nalgebra::Point3;
 
-use crate::mesh::spatial::{SignedSurface, SpatialError};
+use crate::mesh::spatial::{SignedSurface, SpatialError, validate_mesh};
 use crate::mesh::topology::surface_topology;
 use crate::mesh::{LabelledDomain, TriMesh};
 
@@ -63,6 +63,9 @@ impl SurfaceDomain {
         let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
         for (i, s) in surfaces.iter().enumerate() {
             let region = i as u16 + 1;
+            // indices and coordinates first: the topology walk assumes valid indices
+            validate_mesh(s, "surface")
+                .map_err(|source| SurfaceDomainError::Invalid { region, source })?;
             let topo = surface_topology(s);
             if s.triangles.is_empty() || !topo.is_closed_oriented_manifold() {
                 return Err(SurfaceDomainError::NotClosed {
@@ -164,6 +167,16 @@ mod tests {
             }
         }
         m
+    }
+
+    #[test]
+    fn out_of_range_indices_are_an_error_not_a_panic() {
+        let mut bad = crate::mesh::io::test_meshes::cube_surface();
+        bad.triangles[0][1] = 999;
+        assert!(matches!(
+            SurfaceDomain::new(&[bad]),
+            Err(SurfaceDomainError::Invalid { region: 1, .. })
+        ));
     }
 
     #[test]
