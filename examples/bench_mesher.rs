@@ -10,7 +10,7 @@ use nalgebra::Point3;
 use otoatlas::mesh::io::obj::read_obj;
 use otoatlas::mesh::mesher::{MesherParams, SurfaceDomain, mesh_domain};
 use otoatlas::mesh::quality::quality_by_region;
-use otoatlas::mesh::{LabelledDomain, TriMesh};
+use otoatlas::mesh::LabelledDomain;
 
 struct Ball(f64);
 
@@ -27,38 +27,6 @@ impl LabelledDomain for Ball {
     fn signed_distance(&self, _: u16, p: &Point3<f64>) -> f64 {
         p.coords.norm() - self.0
     }
-}
-
-/// Closed UV sphere of radius `r`.
-fn uv_sphere(r: f64, rings: u32, segments: u32) -> TriMesh {
-    use std::f64::consts::PI;
-    let mut m = TriMesh::default();
-    m.vertices.push(Point3::new(0., 0., r));
-    for i in 1..=rings {
-        let theta = PI * i as f64 / (rings + 1) as f64;
-        for j in 0..segments {
-            let phi = 2.0 * PI * j as f64 / segments as f64;
-            m.vertices.push(Point3::new(
-                r * theta.sin() * phi.cos(),
-                r * theta.sin() * phi.sin(),
-                r * theta.cos(),
-            ));
-        }
-    }
-    m.vertices.push(Point3::new(0., 0., -r));
-    let south = rings * segments + 1;
-    let at = |i: u32, j: u32| 1 + (i - 1) * segments + j % segments;
-    for j in 0..segments {
-        m.triangles.push([0, at(1, j), at(1, j + 1)]);
-        m.triangles.push([south, at(rings, j + 1), at(rings, j)]);
-    }
-    for i in 1..rings {
-        for j in 0..segments {
-            m.triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            m.triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    m
 }
 
 fn run(name: &str, domain: &dyn LabelledDomain, edge: f64) {
@@ -112,7 +80,7 @@ fn main() {
     );
     run("analytic ball r=2", &ball, 0.35);
     run("analytic ball r=2", &ball, 0.115);
-    let surface = uv_sphere(2.0, 50, 100);
+    let surface = otoatlas::mesh::shapes::uv_sphere(2.0, 50, 100);
     println!(
         "sphere surface: {} triangles, volume {:.3} mm³",
         surface.triangles.len(),

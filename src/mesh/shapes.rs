@@ -154,6 +154,40 @@ pub fn torus(major: f64, minor: f64, nu: usize, nv: usize) -> TriMesh {
     }
 }
 
+/// A latitude-longitude sphere of radius `r` about the origin: `rings` rings between the
+/// poles, `segments` around; closed and outward. (Unlike the icosphere, its triangles are
+/// anisotropic near the poles, which exercises code on uneven tessellations.)
+pub fn uv_sphere(r: f64, rings: u32, segments: u32) -> TriMesh {
+    use std::f64::consts::PI;
+    let mut m = TriMesh::default();
+    m.vertices.push(Point3::new(0., 0., r));
+    for i in 1..=rings {
+        let theta = PI * i as f64 / (rings + 1) as f64;
+        for j in 0..segments {
+            let phi = 2.0 * PI * j as f64 / segments as f64;
+            m.vertices.push(Point3::new(
+                r * theta.sin() * phi.cos(),
+                r * theta.sin() * phi.sin(),
+                r * theta.cos(),
+            ));
+        }
+    }
+    m.vertices.push(Point3::new(0., 0., -r));
+    let south = rings * segments + 1;
+    let at = |i: u32, j: u32| 1 + (i - 1) * segments + j % segments;
+    for j in 0..segments {
+        m.triangles.push([0, at(1, j), at(1, j + 1)]);
+        m.triangles.push([south, at(rings, j + 1), at(rings, j)]);
+    }
+    for i in 1..rings {
+        for j in 0..segments {
+            m.triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            m.triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use std::f64::consts::PI;

@@ -138,36 +138,6 @@ mod tests {
     use crate::mesh::tet::BoundaryOf;
 
     /// Closed, outward UV sphere of radius `r` (poles plus `rings` × `segments` vertices).
-    pub(crate) fn uv_sphere(r: f64, rings: u32, segments: u32) -> TriMesh {
-        use std::f64::consts::PI;
-        let mut m = TriMesh::default();
-        m.vertices.push(Point3::new(0., 0., r));
-        for i in 1..=rings {
-            let theta = PI * i as f64 / (rings + 1) as f64;
-            for j in 0..segments {
-                let phi = 2.0 * PI * j as f64 / segments as f64;
-                m.vertices.push(Point3::new(
-                    r * theta.sin() * phi.cos(),
-                    r * theta.sin() * phi.sin(),
-                    r * theta.cos(),
-                ));
-            }
-        }
-        m.vertices.push(Point3::new(0., 0., -r));
-        let south = rings * segments + 1;
-        let at = |i: u32, j: u32| 1 + (i - 1) * segments + j % segments;
-        for j in 0..segments {
-            m.triangles.push([0, at(1, j), at(1, j + 1)]);
-            m.triangles.push([south, at(rings, j + 1), at(rings, j)]);
-        }
-        for i in 1..rings {
-            for j in 0..segments {
-                m.triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-                m.triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-            }
-        }
-        m
-    }
 
     #[test]
     fn out_of_range_indices_are_an_error_not_a_panic() {
@@ -231,7 +201,7 @@ mod tests {
 
     #[test]
     fn meshes_a_closed_sphere_surface() {
-        let surface = uv_sphere(1.5, 40, 80);
+        let surface = crate::mesh::shapes::uv_sphere(1.5, 40, 80);
         let exact = surface.signed_volume();
         let domain = SurfaceDomain::new(&[surface]).unwrap();
         let out = mesh_domain(
@@ -279,7 +249,10 @@ mod tests {
 
     #[test]
     fn nested_surfaces_make_a_core_and_a_shell() {
-        let (inner, outer) = (uv_sphere(0.8, 30, 60), uv_sphere(1.6, 40, 80));
+        let (inner, outer) = (
+            crate::mesh::shapes::uv_sphere(0.8, 30, 60),
+            crate::mesh::shapes::uv_sphere(1.6, 40, 80),
+        );
         let (v_in, v_out) = (inner.signed_volume(), outer.signed_volume());
         let domain = SurfaceDomain::new(&[inner, outer]).unwrap();
         // Inside the core, the shell's distance is the distance to the core (CSG difference).
