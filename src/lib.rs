@@ -4,6 +4,7 @@
 //! World space everywhere is DICOM patient space (LPS) in millimetres; see `DESIGN.md` in the
 //! project's shared notes and the README for the conventions each module keeps.
 
+pub mod atlas;
 pub mod cli;
 pub mod config;
 pub mod error;

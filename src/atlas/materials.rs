@@ -1,0 +1,200 @@
+//! Mechanical data of the atlas, in ONE place: Table 1 of Kazmitcheff et al. 2013 exactly
+//! (density kg/m³, Young's modulus Pa), converted once to the FEM's mm-g-s system (density
+//! g/mm³ = 1e-6 × kg/m³; Young's modulus stays in Pa = µN/mm²), plus the values Table 1 does
+//! not give, each with its literature source.
+//!
+//! Sources (numbers as in the source table):
+//! - [K13] Kazmitcheff, Duriez, Miroir, Nguyen, Sterkers, Bozorg-Grayeli, Cotin 2013,
+//!   "Registration of a validated mechanical atlas of middle ear for surgical simulation",
+//!   MICCAI 2013, Table 1.
+//! - [Ko02] Koike, Wada, Kobayashi 2002, J Acoust Soc Am 111:1306–1317, as tabulated in
+//!   Gentil et al. 2016, BioMed Eng OnLine 15 (doi 10.1186/s12938-016-0149-2), Table 1:
+//!   tensor tympani tendon E = 2.6e6 Pa, ρ = 2.5e3 kg/m³.
+//! - [Su02] Sun, Gan, Chang, Dormer 2002, Biomech Model Mechanobiol 1:109–122: Poisson's
+//!   ratio 0.3 for every middle-ear structure (same table of Gentil et al. 2016).
+//! - [Ki60] Kirikae 1960, "The structure and function of the middle ear": pars tensa
+//!   thickness 0.074 mm, the value used by Gan et al. 2004 (Ann Biomed Eng 32:847).
+//! - [Li70] Lim 1970, Acta Otolaryngol 70:176: pars flaccida thicker than the pars tensa
+//!   (about 30–230 µm); the 0.1 mm used here is mid-range and commonly used in models.
+//! - [W16] Wang, Gan et al. 2016, Biomech Model Mechanobiol 15:1263 (PMC4955651), Table 2:
+//!   Rayleigh stiffness-damping coefficients β = 0.75e-4 to 1.5e-4 s, TM and stapes 1.0e-4 s.
+//! - [A01] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance
+//!   ≈ 2e10 Pa·s/m³; with a footplate area of 3.2 mm² the dashpot is Z_c·A² ≈ 0.2 N·s/m.
+
+use super::region::{MembraneRegion, Region};
+
+/// One row of the material table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Density (g/mm³).
+    pub density_g_per_mm3: f64,
+    /// Young's modulus (Pa = µN/mm²).
+    pub young_pa: f64,
+    /// Poisson's ratio (dimensionless).
+    pub poisson: f64,
+}
+
+/// A structure of Table 1: a volumetric region or an eardrum membrane region.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Structure {
+    Volume(Region),
+    Membrane(MembraneRegion),
+}
+
+/// kg/m³ → g/mm³ (1 kg = 1e3 g, 1 m³ = 1e9 mm³).
+pub const KG_PER_M3_TO_G_PER_MM3: f64 = 1e-6;
+
+/// Poisson's ratio of every structure [Su02].
+pub const POISSON: f64 = 0.3;
+
+/// Table 1 of [K13] as printed: (structure, density kg/m³, Young's modulus Pa). The tensor
+/// tympani modulus is missing from the printed table and is taken from [Ko02].
+pub const TABLE1: [(Structure, f64, f64); 17] = [
+    (
+        Structure::Membrane(MembraneRegion::ParsTensa),
+        1.20e3,
+        3.34e7,
+    ),
+    (
+        Structure::Membrane(MembraneRegion::ParsFlaccida),
+        1.20e3,
+        1.10e7,
+    ),
+    (Structure::Volume(Region::MalleusHandle), 3.70e3, 1.41e10),
+    (Structure::Volume(Region::MalleusHead), 2.55e3, 1.41e10),
+    (Structure::Volume(Region::MalleusNeck), 4.53e3, 1.41e10),
+    (Structure::Volume(Region::IncusBody), 2.36e3, 1.41e10),
+    (
+        Structure::Volume(Region::IncusShortProcess),
+        2.26e3,
+        1.41e10,
+    ),
+    (Structure::Volume(Region::IncusLongProcess), 5.08e3, 1.41e10),
+    (Structure::Volume(Region::Stapes), 2.20e3, 1.41e10),
+    (
+        Structure::Volume(Region::SuperiorMallealLigament),
+        2.50e3,
+        4.90e4,
+    ),
+    (
+        Structure::Volume(Region::IncudostapedialJoint),
+        2.50e3,
+        6.00e5,
+    ),
+    (
+        Structure::Volume(Region::IncudomalleolarJoint),
+        2.50e3,
+        1.41e10,
+    ),
+    (
+        Structure::Volume(Region::AnteriorMallealLigament),
+        2.50e3,
+        2.10e7,
+    ),
+    (
+        Structure::Volume(Region::LateralMallealLigament),
+        2.50e3,
+        6.70e4,
+    ),
+    (
+        Structure::Volume(Region::PosteriorIncudalLigament),
+        2.50e3,
+        6.50e5,
+    ),
+    (
+        Structure::Volume(Region::TensorTympaniTendon),
+        2.50e3,
+        2.6e6,
+    ),
+    (Structure::Volume(Region::StapediusTendon), 2.50e3, 5.20e5),
+];
+
+/// The material of a structure, in mm-g-s units.
+pub fn material(structure: Structure) -> Material {
+    // TABLE1 lists every structure exactly once (checked by a unit test), so the search
+    // cannot fail; the fallback keeps this function total without a panic path.
+    let (_, rho, e) = TABLE1
+        .iter()
+        .find(|(s, _, _)| *s == structure)
+        .copied()
+        .unwrap_or((structure, f64::NAN, f64::NAN));
+    Material {
+        density_g_per_mm3: rho * KG_PER_M3_TO_G_PER_MM3,
+        young_pa: e,
+        poisson: POISSON,
+    }
+}
+
+/// Membrane thickness (mm): pars tensa [Ki60], pars flaccida [Li70].
+pub fn membrane_thickness_mm(region: MembraneRegion) -> f64 {
+    match region {
+        MembraneRegion::ParsTensa => 0.074,
+        MembraneRegion::ParsFlaccida => 0.1,
+    }
+}
+
+/// Rayleigh damping C = α M + β K: starting values, to be calibrated once on the atlas's own
+/// transfer function and frozen (mechanics-metrics §1.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rayleigh {
+    /// Mass-proportional coefficient α (1/s).
+    pub alpha_per_s: f64,
+    /// Stiffness-proportional coefficient β (s).
+    pub beta_s: f64,
+}
+
+/// Starting Rayleigh coefficients: α = 0, β = 1.0e-4 s [W16].
+pub const RAYLEIGH: Rayleigh = Rayleigh {
+    alpha_per_s: 0.0,
+    beta_s: 1.0e-4,
+};
+
+/// Cochlear input impedance Z_c (Pa·s/m³) [A01].
+pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 2.0e10;
+
+/// Total cochlear dashpot on the footplate, Z_c · A² with A the footplate area in m², in the
+/// mm-g-s unit g/s (1 N·s/m = 1 kg/s = 1000 g/s; g/s × mm/s = g·mm/s² = µN). For
+/// A = 3.2 mm² it is 0.205 N·s/m = 205 g/s. Spread it over the footplate nodes in proportion
+/// to their area.
+pub fn cochlear_damping_g_per_s(footplate_area_mm2: f64) -> f64 {
+    let area_m2 = footplate_area_mm2 * 1e-6;
+    COCHLEAR_IMPEDANCE_PA_S_PER_M3 * area_m2 * area_m2 * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_table_row_is_listed_once() {
+        for r in Region::ALL {
+            let n = TABLE1
+                .iter()
+                .filter(|t| t.0 == Structure::Volume(r))
+                .count();
+            assert_eq!(n, 1, "{}", r.name());
+        }
+        for m in [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida] {
+            assert_eq!(
+                TABLE1
+                    .iter()
+                    .filter(|t| t.0 == Structure::Membrane(m))
+                    .count(),
+                1
+            );
+        }
+    }
+
+    #[test]
+    fn units_are_converted_once_to_mm_g_s() {
+        let neck = material(Structure::Volume(Region::MalleusNeck));
+        assert!((neck.density_g_per_mm3 - 4.53e-3).abs() < 1e-15);
+        assert_eq!(neck.young_pa, 1.41e10);
+        let tensa = material(Structure::Membrane(MembraneRegion::ParsTensa));
+        assert!((tensa.density_g_per_mm3 - 1.2e-3).abs() < 1e-15);
+        assert_eq!(tensa.young_pa, 3.34e7);
+        // 0.2 N·s/m = 200 g/s for a 3.2 mm² footplate at 2e10 Pa·s/m³ (within 3 %).
+        let c = cochlear_damping_g_per_s(3.2);
+        assert!((c - 204.8).abs() < 1e-9, "{c}");
+    }
+}
