@@ -7,10 +7,10 @@
 use std::time::Instant;
 
 use nalgebra::Point3;
+use otoatlas::mesh::LabelledDomain;
 use otoatlas::mesh::io::obj::read_obj;
 use otoatlas::mesh::mesher::{MesherParams, SurfaceDomain, mesh_domain};
 use otoatlas::mesh::quality::quality_by_region;
-use otoatlas::mesh::LabelledDomain;
 
 struct Ball(f64);
 

@@ -27,6 +27,8 @@ pub enum Error {
     MeshDev(#[from] crate::meshdev::MeshDevError),
     #[error(transparent)]
     MeshIo(#[from] crate::mesh::io::MeshIoError),
+    #[error(transparent)]
+    Anatomy(#[from] crate::atlas::AnatomyError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -46,6 +48,7 @@ impl Error {
             | Error::Landmark(_)
             | Error::Case(_)
             | Error::MeshIo(_)
+            | Error::Anatomy(_)
             | Error::Usage(_) => ExitStatus::BadInput,
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }

@@ -7,6 +7,7 @@
 pub mod atlas;
 pub mod cli;
 pub mod config;
+pub mod ear;
 pub mod error;
 pub mod fem;
 pub mod image;

@@ -22,21 +22,11 @@ use super::eardrum::Eardrum;
 use super::region::{Bone, Region};
 use super::sdf::{Disc, Primitive, Tube, smooth_min};
 use super::spec::{AnatomyError, AnatomySpec, Checker, Side};
+use crate::ear::Landmarks;
 use crate::mesh::LabelledDomain;
 
 /// The default atlas anatomy (a right ear), as shipped in `assets/anatomy.toml`.
 pub const DEFAULT_TOML: &str = include_str!("../../assets/anatomy.toml");
-
-/// The three landmarks of the rigid registration (Kazmitcheff et al. 2013, §3).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Landmarks {
-    /// Tip of the manubrium, apex of the eardrum cone.
-    pub umbo: Point3<f64>,
-    /// Centre of the incudomalleolar joint.
-    pub incudomalleolar: Point3<f64>,
-    /// Centre of the incudostapedial joint.
-    pub incudostapedial: Point3<f64>,
-}
 
 /// One ossicle: its primitives, each tagged with the Table 1 part it belongs to.
 #[derive(Debug, Clone, PartialEq)]

@@ -12,7 +12,8 @@ pub mod region;
 pub mod sdf;
 pub mod spec;
 
-pub use anatomy::{Anatomy, DEFAULT_TOML, Landmarks};
+pub use crate::ear::Landmarks;
+pub use anatomy::{Anatomy, DEFAULT_TOML};
 pub use eardrum::Eardrum;
 pub use region::{Bone, MembraneRegion, Region};
 pub use spec::{AnatomyError, AnatomySpec, Side};

@@ -10,6 +10,8 @@ use std::path::Path;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
+pub use crate::ear::Side;
+
 use super::sdf::{Disc, Ellipsoid, Frame, Primitive, Tube};
 
 /// Errors reading or checking an anatomy description.
@@ -30,15 +32,6 @@ pub enum AnatomyError {
         value: String,
         expected: &'static str,
     },
-}
-
-/// Which ear the description is of. A left ear is the mirror image of a right ear in the
-/// sagittal plane x = 0 of the atlas frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Side {
-    Right,
-    Left,
 }
 
 /// The whole anatomy file.

@@ -4,8 +4,7 @@
 pub mod deform;
 pub mod landmarks;
 pub mod rigid;
-pub mod side;
 
+pub use crate::ear::Side;
 pub use landmarks::{LandmarkName, Landmarks};
 pub use rigid::{RigidFit, SimilarityTransform, fit_similarity};
-pub use side::Side;
