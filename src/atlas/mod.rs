@@ -11,6 +11,7 @@ pub mod materials;
 pub mod region;
 pub mod sdf;
 pub mod spec;
+pub mod volume;
 
 pub use crate::ear::Landmarks;
 pub use anatomy::{Anatomy, DEFAULT_TOML};
