@@ -2,3 +2,4 @@
 //! anatomy and the case writer).
 
 pub mod imaging;
+pub mod scene;
