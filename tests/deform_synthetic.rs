@@ -4,52 +4,16 @@
 
 mod common;
 
-use std::collections::HashMap;
-
 use common::BoxMesh;
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
 use otoatlas::fem::{FemModel, MembraneElements, TetElements, TetMaterial};
 use otoatlas::image::Sampler;
-use otoatlas::mesh::{TriMesh, shapes};
+use otoatlas::mesh::tet::BoundaryOf;
+use otoatlas::mesh::{TetMesh, TriMesh, shapes};
 use otoatlas::meshdev::{CompareOptions, compare};
 use otoatlas::phantom::imaging::{Grid, ImagingParams, render};
 use otoatlas::register::deform::{ProbeKind, ProbeTriangle, deform};
-
-/// Boundary faces of a tet mesh, outward (opposite vertex behind them).
-fn boundary(nodes: &[Point3<f64>], tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
-    let mut count: HashMap<[u32; 3], ([u32; 3], u32)> = HashMap::new();
-    for t in tets {
-        for (f, opp) in [
-            ([t[0], t[1], t[2]], t[3]),
-            ([t[0], t[1], t[3]], t[2]),
-            ([t[0], t[2], t[3]], t[1]),
-            ([t[1], t[2], t[3]], t[0]),
-        ] {
-            let mut key = f;
-            key.sort_unstable();
-            count
-                .entry(key)
-                .and_modify(|e| e.1 = u32::MAX)
-                .or_insert((f, opp));
-        }
-    }
-    let mut faces: Vec<[u32; 3]> = count
-        .values()
-        .filter(|(_, opp)| *opp != u32::MAX)
-        .map(|(f, opp)| {
-            let [a, b, c] = f.map(|k| nodes[k as usize]);
-            let n = (b - a).cross(&(c - a));
-            if n.dot(&(nodes[*opp as usize] - a)) > 0.0 {
-                [f[0], f[2], f[1]]
-            } else {
-                *f
-            }
-        })
-        .collect();
-    faces.sort_unstable();
-    faces
-}
 
 #[test]
 fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
@@ -95,7 +59,14 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         MembraneElements::none(),
     )
     .unwrap();
-    let faces = boundary(&nodes, &mesh.tets);
+    // the Kuhn split leaves half the tets negatively oriented; boundaries need them positive
+    let mut tet_mesh = TetMesh {
+        nodes: nodes.clone(),
+        tets: mesh.tets.clone(),
+        regions: vec![1; mesh.tets.len()],
+    };
+    tet_mesh.orient_positive();
+    let faces = tet_mesh.boundary(BoundaryOf::Whole).node_triangles();
     let probes: Vec<ProbeTriangle> = faces
         .iter()
         .map(|f| ProbeTriangle {

@@ -47,13 +47,14 @@ fn out_paths(args: &LandmarksArgs, case: &Case) -> (PathBuf, PathBuf) {
             (p.with_extension("fcsv"), p.clone())
         }
         Some(p) => (p.clone(), p.with_extension("json")),
-        None if case.root.join("dicom").exists() || case.image != case.root => (
-            case.root.join("landmarks.fcsv"),
-            case.root.join("landmarks.json"),
-        ),
-        None => (
+        // a bare DICOM folder is the case itself: do not write into the series
+        None if case.image == case.root => (
             PathBuf::from("landmarks.fcsv"),
             PathBuf::from("landmarks.json"),
+        ),
+        None => (
+            case.root.join("landmarks.fcsv"),
+            case.root.join("landmarks.json"),
         ),
     }
 }

@@ -30,6 +30,17 @@ pub struct Boundary {
     pub node_of_vertex: Vec<u32>,
 }
 
+impl Boundary {
+    /// The boundary triangles in the tet mesh's node numbering (same order and orientation).
+    pub fn node_triangles(&self) -> Vec<[u32; 3]> {
+        self.surface
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| self.node_of_vertex[v as usize]))
+            .collect()
+    }
+}
+
 /// Which tets a boundary is taken of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BoundaryOf {
@@ -230,11 +241,9 @@ mod tests {
         assert!((b2.surface.signed_volume() - 0.5).abs() < 1e-12);
         // 6 outer triangles each plus the interface, seen from both sides.
         let faces = |b: &Boundary| -> Vec<[u32; 3]> {
-            b.surface
-                .triangles
-                .iter()
-                .map(|t| {
-                    let mut k = t.map(|v| b.node_of_vertex[v as usize]);
+            b.node_triangles()
+                .into_iter()
+                .map(|mut k| {
                     k.sort_unstable();
                     k
                 })

@@ -215,12 +215,7 @@ mod tests {
     fn sample() -> VolumeMesh {
         let tets = kuhn_cube();
         let b = tets.boundary(BoundaryOf::Region(2));
-        let triangles: Vec<[u32; 3]> = b
-            .surface
-            .triangles
-            .iter()
-            .map(|t| t.map(|v| b.node_of_vertex[v as usize]))
-            .collect();
+        let triangles: Vec<[u32; 3]> = b.node_triangles();
         VolumeMesh {
             triangle_regions: vec![12; triangles.len()],
             triangles,

@@ -49,12 +49,7 @@ fn meshio_reads_what_we_write() {
         regions,
     };
     let b = tet_mesh.boundary(BoundaryOf::Whole);
-    let triangles: Vec<[u32; 3]> = b
-        .surface
-        .triangles
-        .iter()
-        .map(|t| t.map(|v| b.node_of_vertex[v as usize]))
-        .collect();
+    let triangles: Vec<[u32; 3]> = b.node_triangles();
     let volume = tet_mesh.volume();
     let mesh = VolumeMesh {
         triangle_regions: vec![3; triangles.len()],

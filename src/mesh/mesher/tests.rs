@@ -91,14 +91,6 @@ fn check_mesh(mesh: &TetMesh) {
     }
 }
 
-fn node_faces(b: &Boundary) -> Vec<[u32; 3]> {
-    b.surface
-        .triangles
-        .iter()
-        .map(|t| t.map(|v| b.node_of_vertex[v as usize]))
-        .collect()
-}
-
 #[test]
 fn ball_volume_boundary_and_quality() {
     let r = 2.0;
@@ -146,8 +138,8 @@ fn touching_boxes_conform_at_their_interface() {
         mesh.boundary(BoundaryOf::Region(1)),
         mesh.boundary(BoundaryOf::Region(2)),
     );
-    let mut f1 = node_faces(&b1);
-    let f2 = node_faces(&b2);
+    let mut f1 = b1.node_triangles();
+    let f2 = b2.node_triangles();
     // Interface: faces of region 1 whose reverse is a face of region 2.
     let sorted = |f: &[u32; 3]| {
         let mut k = *f;
@@ -167,7 +159,7 @@ fn touching_boxes_conform_at_their_interface() {
     assert!((area - 4.0).abs() < 0.02, "interface area {area}");
     // Independent check: faces of each region lying on x = 2 are the same node triples.
     let on_plane = |b: &Boundary| -> std::collections::BTreeSet<[u32; 3]> {
-        node_faces(b)
+        b.node_triangles()
             .iter()
             .filter(|f| {
                 f.iter()
@@ -344,9 +336,9 @@ fn curved_interface_between_core_and_shell_conforms() {
         k
     };
     let shell_faces: std::collections::HashSet<[u32; 3]> =
-        node_faces(&shell).iter().map(key).collect();
+        shell.node_triangles().iter().map(key).collect();
     assert!(
-        node_faces(&core)
+        core.node_triangles()
             .iter()
             .all(|f| shell_faces.contains(&key(f)))
     );

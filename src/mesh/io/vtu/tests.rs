@@ -10,12 +10,7 @@ use crate::mesh::topology::surface_topology;
 pub(crate) fn sample() -> (VolumeMesh, Vec<CellArray>) {
     let tets = kuhn_cube();
     let b = tets.boundary(BoundaryOf::Whole);
-    let triangles: Vec<[u32; 3]> = b
-        .surface
-        .triangles
-        .iter()
-        .map(|t| t.map(|v| b.node_of_vertex[v as usize]))
-        .collect();
+    let triangles: Vec<[u32; 3]> = b.node_triangles();
     let n = tets.tets.len() + triangles.len();
     let mesh = VolumeMesh {
         triangle_regions: vec![7; triangles.len()],
