@@ -29,6 +29,8 @@ pub enum Error {
     MeshIo(#[from] crate::mesh::io::MeshIoError),
     #[error(transparent)]
     Anatomy(#[from] crate::atlas::AnatomyError),
+    #[error(transparent)]
+    Atlas(#[from] crate::atlas::AtlasError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -49,6 +51,7 @@ impl Error {
             | Error::Case(_)
             | Error::MeshIo(_)
             | Error::Anatomy(_)
+            | Error::Atlas(_)
             | Error::Usage(_) => ExitStatus::BadInput,
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }

@@ -1,20 +1,30 @@
-//! The atlas anatomy: a parametric right middle ear (ossicles, joints, ligaments, tendons,
+//! The mechanical atlas: a parametric right middle ear (ossicles, joints, ligaments, tendons,
 //! eardrum) read from `assets/anatomy.toml`, evaluated as a labelled implicit domain for the
-//! mesher, with the landmarks and boundary-condition sites, and the Table 1 materials.
+//! mesher, with the landmarks and boundary-condition sites, and the Table 1 materials; the
+//! assembled FEM atlas built from it, its file format and the embedded default.
 //!
 //! The frame, the label numbering and the literature sources are documented in
 //! `docs/anatomy.md`.
 
 pub mod anatomy;
+pub mod build;
 pub mod eardrum;
+pub mod export;
+pub mod format;
 pub mod materials;
+pub mod membrane;
+pub mod model;
 pub mod region;
 pub mod sdf;
 pub mod spec;
+pub mod summary;
 pub mod volume;
 
 pub use crate::ear::Landmarks;
 pub use anatomy::{Anatomy, DEFAULT_TOML};
+pub use build::{BuildError, build_atlas};
 pub use eardrum::Eardrum;
+pub use format::{AtlasError, default_atlas, read_atlas, write_atlas};
+pub use model::{Atlas, Part};
 pub use region::{Bone, MembraneRegion, Region};
 pub use spec::{AnatomyError, AnatomySpec, Side};

@@ -1,6 +1,7 @@
 //! The command line: argument definitions (clap) and the dispatch to the library. Each command
 //! lives in its own file; this one only parses, runs and maps errors to exit codes.
 
+pub mod atlas;
 mod inspect;
 mod landmarks;
 
@@ -31,6 +32,7 @@ pub struct Cli {
 pub enum Command {
     Inspect(inspect::InspectArgs),
     Landmarks(landmarks::LandmarksArgs),
+    Atlas(atlas::AtlasArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script.
@@ -53,10 +55,12 @@ pub fn main() -> ExitCode {
     let json = match &cli.command {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,
+        Command::Atlas(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
+        Command::Atlas(a) => atlas::run(a),
     };
     match result {
         Ok(report) => {

@@ -43,11 +43,13 @@ impl Boundary {
 
 /// Which tets a boundary is taken of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BoundaryOf {
+pub enum BoundaryOf<'a> {
     /// The whole mesh: faces not shared with any other tet.
     Whole,
     /// One region: faces of its tets not shared with another tet of the same region.
     Region(u16),
+    /// A union of regions: faces of their tets not shared with another tet of the union.
+    Regions(&'a [u16]),
 }
 
 /// A structural defect found by [`TetMesh::validate`].
@@ -148,10 +150,11 @@ impl TetMesh {
     ///
     /// Triangles come in tet order and face order, vertices in order of first use, so the
     /// result is deterministic.
-    pub fn boundary(&self, of: BoundaryOf) -> Boundary {
+    pub fn boundary(&self, of: BoundaryOf<'_>) -> Boundary {
         let selected = |t: usize| match of {
             BoundaryOf::Whole => true,
             BoundaryOf::Region(r) => self.regions[t] == r,
+            BoundaryOf::Regions(rs) => rs.contains(&self.regions[t]),
         };
         let key = |t: usize, f: &[usize; 3]| {
             let mut k = f.map(|i| self.tets[t][i]);

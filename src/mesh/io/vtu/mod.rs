@@ -6,7 +6,7 @@
 mod read;
 mod write;
 
-pub use read::{read_vtu, read_vtu_tets};
+pub use read::{parse_vtu, read_vtu, read_vtu_tets};
 pub use write::{vtu_string, write_vtu};
 
 const VTK_TRIANGLE: u8 = 5;

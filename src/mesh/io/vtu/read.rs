@@ -26,14 +26,18 @@ fn named<'a>(
 /// `region` when present (else every cell is region 1); every other single-component cell
 /// array is returned as a `CellArray`, reordered like the cells (tets first).
 pub fn read_vtu(path: &Path) -> Result<(VolumeMesh, Vec<CellArray>), MeshIoError> {
-    let text = read_text(path)?;
-    let root = elements(&text, "VTKFile")
+    parse_vtu(&read_text(path)?, path)
+}
+
+/// Parses a VTU document already in memory; `path` names it in errors.
+pub fn parse_vtu(text: &str, path: &Path) -> Result<(VolumeMesh, Vec<CellArray>), MeshIoError> {
+    let root = elements(text, "VTKFile")
         .next()
         .ok_or_else(|| MeshIoError::parse(path, "document", "a <VTKFile> element"))?;
     if attr(root.tag, "type") != Some("UnstructuredGrid") {
         return Err(MeshIoError::parse(
             path,
-            format!("line {} <VTKFile>", line_of(&text, root.start)),
+            format!("line {} <VTKFile>", line_of(text, root.start)),
             "type=\"UnstructuredGrid\"",
         ));
     }
@@ -77,7 +81,7 @@ pub fn read_vtu(path: &Path) -> Result<(VolumeMesh, Vec<CellArray>), MeshIoError
     let section = |name: &str| {
         elements(piece.body, name)
             .next()
-            .map(|e| DataArray::all(&text, e.body, header64))
+            .map(|e| DataArray::all(text, e.body, header64))
     };
     let points = section("Points")
         .ok_or_else(|| MeshIoError::parse(path, "<Piece>", "a <Points> section"))?;

@@ -1,0 +1,206 @@
+//! `otoatlas atlas`: build, describe and export the mechanical atlas (the embedded default or
+//! an atlas folder).
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Subcommand};
+
+use super::Report;
+use crate::Error;
+use crate::atlas::build::DEFAULT_MEMBRANE_EDGE_MM;
+use crate::atlas::export::export_atlas;
+use crate::atlas::summary::summarise;
+use crate::atlas::volume::{DEFAULT_EDGE_MM, FINE_EDGE_MM};
+use crate::atlas::{Anatomy, Atlas, build_atlas, default_atlas, read_atlas, write_atlas};
+use crate::ear::Side;
+use crate::progress;
+
+/// Build, describe or export the mechanical atlas.
+#[derive(Debug, Args)]
+pub struct AtlasArgs {
+    #[command(subcommand)]
+    pub command: AtlasCommand,
+    /// Print machine-readable JSON on stdout.
+    #[arg(long, global = true)]
+    pub json: bool,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum AtlasCommand {
+    /// Mesh an anatomy file into an atlas folder (deterministic: same input, same bytes).
+    #[command(after_help = "Examples:
+  otoatlas atlas build --out assets/atlas            # the embedded default, rebuilt
+  otoatlas atlas build --fine --out fine-atlas       # ~200,000 tetrahedra, for convergence")]
+    Build(BuildArgs),
+    /// Element counts, volumes, mesh quality, materials, boundary sets and landmarks.
+    Info(SourceArgs),
+    /// Write surfaces/{malleus,incus,stapes,eardrum}.ply, volume.vtu and the landmarks.
+    Export(ExportArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SourceArgs {
+    /// An atlas folder (atlas.json + mesh); default: the embedded atlas.
+    #[arg(long, value_name = "DIR")]
+    pub atlas: Option<PathBuf>,
+    /// Mirror the atlas to this side first.
+    #[arg(long, value_enum)]
+    pub side: Option<Side>,
+}
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// Output folder.
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct BuildArgs {
+    /// The anatomy description (TOML); default: the embedded assets/anatomy.toml.
+    #[arg(long, value_name = "FILE")]
+    pub anatomy: Option<PathBuf>,
+    /// Target tetrahedron edge [mm].
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_EDGE_MM, conflicts_with = "fine")]
+    pub edge: f64,
+    /// The fine variant (edge 0.11 mm).
+    #[arg(long)]
+    pub fine: bool,
+    /// Target eardrum triangle edge [mm].
+    #[arg(long, value_name = "MM", default_value_t = DEFAULT_MEMBRANE_EDGE_MM)]
+    pub membrane_edge: f64,
+    /// The atlas's name in its manifest.
+    #[arg(long, default_value = "default")]
+    pub name: String,
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+}
+
+/// The atlas in `dir` (default: the embedded one), mirrored to `side` if it is the other ear.
+pub fn load_atlas(dir: Option<&Path>, side: Option<Side>) -> Result<Atlas, Error> {
+    let atlas = match dir {
+        Some(d) => read_atlas(d)?,
+        None => default_atlas()?,
+    };
+    Ok(match side {
+        Some(s) if s != atlas.side => atlas.mirrored(),
+        _ => atlas,
+    })
+}
+
+pub fn run(args: &AtlasArgs) -> Result<Report, Error> {
+    match &args.command {
+        AtlasCommand::Build(b) => build(b),
+        AtlasCommand::Info(s) => info(s),
+        AtlasCommand::Export(e) => export(e),
+    }
+}
+
+fn build(args: &BuildArgs) -> Result<Report, Error> {
+    let anatomy = match &args.anatomy {
+        Some(p) => Anatomy::load(p)?,
+        None => Anatomy::default_right()?,
+    };
+    let edge = if args.fine { FINE_EDGE_MM } else { args.edge };
+    for (name, v) in [("--edge", edge), ("--membrane-edge", args.membrane_edge)] {
+        if !(v.is_finite() && (0.02..=2.0).contains(&v)) {
+            return Err(Error::Usage(format!(
+                "{name} {v}: expected an edge length from 0.02 to 2 mm"
+            )));
+        }
+    }
+    progress::log(format!("atlas build: meshing at {edge} mm"));
+    let atlas = build_atlas(&anatomy, &args.name, edge, args.membrane_edge)
+        .map_err(crate::atlas::AtlasError::from)?;
+    write_atlas(&args.out, &atlas)?;
+    let summary = summarise(&atlas);
+    Ok(Report {
+        text: format!(
+            "wrote {}: {} tetrahedra, {} membrane triangles, {} nodes\n",
+            args.out.display(),
+            summary.tetrahedra,
+            summary.membrane_triangles,
+            summary.nodes
+        ),
+        json: serde_json::to_value(&summary).unwrap_or_default(),
+    })
+}
+
+fn info(args: &SourceArgs) -> Result<Report, Error> {
+    let atlas = load_atlas(args.atlas.as_deref(), args.side)?;
+    let s = summarise(&atlas);
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "atlas '{}' ({} ear): {} nodes, {} tetrahedra, {} membrane triangles",
+        s.name,
+        s.side.as_str(),
+        s.nodes,
+        s.tetrahedra,
+        s.membrane_triangles
+    );
+    let _ = writeln!(
+        text,
+        "\n{:<28} {:>5} {:>8} {:>10}  {:>7} {:>7} {:>6}  {:>10} {:>8}",
+        "region", "label", "elements", "size", "min°", "med°", "r/e", "E [Pa]", "ρ kg/m³"
+    );
+    for r in &s.regions {
+        let m = s.materials.get(&r.material);
+        let (min, med, re) = r
+            .quality
+            .map_or((String::new(), String::new(), String::new()), |q| {
+                (
+                    format!("{:.1}", q.min_dihedral_deg),
+                    format!("{:.1}", q.median_min_dihedral_deg),
+                    format!("{:.2}", q.median_radius_edge),
+                )
+            });
+        let _ = writeln!(
+            text,
+            "{:<28} {:>5} {:>8} {:>6.3} {:<3}  {:>7} {:>7} {:>6}  {:>10.3e} {:>8.0}",
+            r.name,
+            r.label,
+            r.elements,
+            r.size,
+            r.unit,
+            min,
+            med,
+            re,
+            m.map_or(f64::NAN, |m| m.youngs_modulus_pa),
+            m.map_or(f64::NAN, |m| m.density_kg_m3),
+        );
+    }
+    let _ = writeln!(text, "\nboundary node sets:");
+    for (k, v) in &s.node_sets {
+        let _ = writeln!(text, "  {k:<40} {v} nodes");
+    }
+    let _ = writeln!(text, "load surfaces:");
+    for (k, v) in &s.surfaces {
+        let _ = writeln!(text, "  {k:<40} {v} triangles");
+    }
+    let _ = writeln!(text, "landmarks (mm):");
+    for (k, p) in &s.landmarks {
+        let _ = writeln!(text, "  {k:<16} {:8.3} {:8.3} {:8.3}", p[0], p[1], p[2]);
+    }
+    Ok(Report {
+        text,
+        json: serde_json::to_value(&s).unwrap_or_default(),
+    })
+}
+
+fn export(args: &ExportArgs) -> Result<Report, Error> {
+    let atlas = load_atlas(args.source.atlas.as_deref(), args.source.side)?;
+    let written = export_atlas(&atlas, atlas.nodes(), &args.out)?;
+    let files: Vec<String> = written
+        .files
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    Ok(Report {
+        text: files.iter().map(|f| format!("wrote {f}\n")).collect(),
+        json: serde_json::json!({ "files": files, "side": atlas.side.as_str() }),
+    })
+}
