@@ -114,6 +114,25 @@ impl Config {
             "ingest.orientation_tolerance",
             self.ingest.orientation_tolerance,
         )?;
+        let d = &self.deform;
+        for (field, v) in [
+            ("deform.search_range_mm", d.probe.search_range_mm),
+            ("deform.intensity_shift_hu", d.probe.intensity_shift_hu),
+            ("deform.ratio_threshold", d.probe.ratio_threshold),
+            (
+                "deform.regularisation_modulus_pa",
+                d.regularisation_modulus_pa,
+            ),
+            ("deform.min_modulus_ratio", d.min_modulus_ratio),
+            (
+                "deform.spring_stiffness_per_area",
+                d.spring_stiffness_per_area,
+            ),
+            ("deform.neighbour_tolerance_mm", d.neighbour_tolerance_mm),
+            ("deform.tolerance_mm", d.tolerance_mm),
+        ] {
+            positive(field, v)?;
+        }
         Ok(())
     }
 }

@@ -477,7 +477,7 @@ mod tests {
             assert!((a - b).norm() < 1e-9);
         }
         // the FEM system builds with the real materials; its mass is the tissue's
-        let model = atlas.fem_model(atlas.nodes(), None).unwrap();
+        let model = atlas.fem_model(atlas.nodes(), None, true).unwrap();
         assert_eq!(model.membrane_count(), m.triangles.len());
         let mass_mg = model.lumped_masses().iter().sum::<f64>() * 1e3;
         // ossicles ~ 60-80 mg in all (malleus ~25, incus ~27, stapes ~3 mg) plus soft tissue
@@ -512,6 +512,6 @@ mod tests {
         });
         // mirrored vector of the right normal equals the left normal
         assert!((nr.x + nl.x).abs() < 1e-12 && (nr.y - nl.y).abs() < 1e-12);
-        assert!(left.fem_model(left.nodes(), None).is_ok());
+        assert!(left.fem_model(left.nodes(), None, true).is_ok());
     }
 }

@@ -120,6 +120,18 @@ pub fn default_atlas() -> Result<Atlas, AtlasError> {
     )
 }
 
+/// The atlas in `dir` (default: the embedded one), mirrored to `side` if it is the other ear.
+pub fn load_atlas(dir: Option<&Path>, side: Option<Side>) -> Result<Atlas, AtlasError> {
+    let atlas = match dir {
+        Some(d) => read_atlas(d)?,
+        None => default_atlas()?,
+    };
+    Ok(match side {
+        Some(s) if s != atlas.side => atlas.mirrored(),
+        _ => atlas,
+    })
+}
+
 /// Reads and validates the atlas in folder `dir` (or the manifest file itself).
 pub fn read_atlas(dir: &Path) -> Result<Atlas, AtlasError> {
     let manifest_path = if dir.is_dir() {

@@ -261,13 +261,18 @@ impl Atlas {
         compact(&self.part_triangles(part), nodes)
     }
 
-    /// The FEM model with its rest shape at `nodes`. With `bone_modulus_pa`, every modulus
-    /// is scaled by the same factor so that the stiffest region (bone) gets that value: the
-    /// stiffness ratios of the atlas stay, its absolute level becomes a registration weight.
+    /// The FEM model with its rest shape at `nodes`. With `registration = (E, r)`, every
+    /// modulus is scaled by the same factor so that the stiffest region (bone) gets E, and no
+    /// region is softer than r·E: the atlas's stiffness ordering stays, its absolute level
+    /// becomes a registration weight, and nearly free tissue (a ligament is 1e-6 of bone)
+    /// cannot be crushed flat by its neighbours' motion.
+    /// Without `membranes`, the eardrum's triangles are left out (its nodes then carry no
+    /// element).
     pub fn fem_model(
         &self,
         nodes: &[Point3<f64>],
-        bone_modulus_pa: Option<f64>,
+        registration: Option<(f64, f64)>,
+        membranes: bool,
     ) -> Result<FemModel, FemError> {
         let mut tet_materials = Vec::new();
         let mut membrane_materials = Vec::new();
@@ -279,13 +284,16 @@ impl Atlas {
             .values()
             .map(|m| m.youngs_modulus_pa)
             .fold(0.0, f64::max);
-        let scale = bone_modulus_pa.map_or(1.0, |e| e / stiffest);
+        let modulus = |e: f64| match registration {
+            Some((bone, ratio)) => (e * bone / stiffest).max(ratio * bone),
+            None => e,
+        };
         for r in &self.regions {
             let Some(m) = self.materials.get(&r.material) else {
                 continue;
             };
             let (e, nu, rho) = (
-                m.youngs_modulus_pa * scale,
+                modulus(m.youngs_modulus_pa),
                 m.poisson_ratio,
                 m.density_kg_m3 * KG_PER_M3_TO_G_PER_MM3,
             );
@@ -324,10 +332,14 @@ impl Atlas {
                 material_index: &tet_mi,
                 materials: &tet_materials,
             },
-            MembraneElements {
-                cells: &self.mesh.triangles,
-                material_index: &tri_mi,
-                materials: &membrane_materials,
+            if membranes {
+                MembraneElements {
+                    cells: &self.mesh.triangles,
+                    material_index: &tri_mi,
+                    materials: &membrane_materials,
+                }
+            } else {
+                MembraneElements::none()
             },
         )
     }

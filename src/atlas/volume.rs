@@ -2,6 +2,8 @@
 //! tendons) meshed into conforming tetrahedra by the multi-domain mesher. Joints, ligaments,
 //! tendons and the stapes (crura about 0.3 mm) are declared thin so they survive the lattice.
 
+#[cfg(test)]
+use crate::atlas::Bone;
 use crate::atlas::{Anatomy, Region};
 use crate::mesh::mesher::{MeshOutput, MesherError, MesherParams, mesh_domain};
 
@@ -61,9 +63,8 @@ mod tests {
                 q.min_dihedral_deg
             );
         }
-        // every region's boundary is closed, manifold and outward; the whole is one connected
-        // system (where two structures touch along an edge only, the union's boundary is not
-        // yet manifold: the mesher repairs regions, not their union)
+        // every region's boundary is closed, manifold and outward; so is the whole, which is
+        // one connected system
         for r in Region::ALL {
             let b = m.boundary(BoundaryOf::Region(r.label())).surface;
             assert!(
@@ -74,7 +75,15 @@ mod tests {
         }
         let whole = m.boundary(BoundaryOf::Whole).surface;
         let topo = surface_topology(&whole);
-        assert_eq!((topo.components, topo.border_edges), (1, 0), "{topo:?}");
+        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+        assert_eq!(topo.components, 1, "{topo:?}");
+        // and so is each ossicle (the union of its regions): no slit between head and neck
+        for bone in [Bone::Malleus, Bone::Incus, Bone::Stapes] {
+            let labels: Vec<u16> = bone.regions().iter().map(|r| r.label()).collect();
+            let b = m.boundary(BoundaryOf::Regions(&labels)).surface;
+            let t = surface_topology(&b);
+            assert!(t.is_closed_oriented_manifold(), "{bone:?}: {t:?}");
+        }
         // volumes within 10 % of the implicit anatomy's (malleus ~10.3 mm³, measured by
         // lattice integration in tests/atlas_anatomy.rs)
         let malleus: f64 = [

@@ -2,7 +2,7 @@
 //! an atlas folder).
 
 use std::fmt::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
@@ -12,7 +12,7 @@ use crate::atlas::build::DEFAULT_MEMBRANE_EDGE_MM;
 use crate::atlas::export::export_atlas;
 use crate::atlas::summary::summarise;
 use crate::atlas::volume::{DEFAULT_EDGE_MM, FINE_EDGE_MM};
-use crate::atlas::{Anatomy, Atlas, build_atlas, default_atlas, read_atlas, write_atlas};
+use crate::atlas::{Anatomy, build_atlas, load_atlas, write_atlas};
 use crate::ear::Side;
 use crate::progress;
 
@@ -77,18 +77,6 @@ pub struct BuildArgs {
     /// Output folder.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-}
-
-/// The atlas in `dir` (default: the embedded one), mirrored to `side` if it is the other ear.
-pub fn load_atlas(dir: Option<&Path>, side: Option<Side>) -> Result<Atlas, Error> {
-    let atlas = match dir {
-        Some(d) => read_atlas(d)?,
-        None => default_atlas()?,
-    };
-    Ok(match side {
-        Some(s) if s != atlas.side => atlas.mirrored(),
-        _ => atlas,
-    })
 }
 
 pub fn run(args: &AtlasArgs) -> Result<Report, Error> {

@@ -4,6 +4,7 @@
 pub mod atlas;
 mod inspect;
 mod landmarks;
+mod run;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -32,6 +33,7 @@ pub struct Cli {
 pub enum Command {
     Inspect(inspect::InspectArgs),
     Landmarks(landmarks::LandmarksArgs),
+    Run(run::RunArgs),
     Atlas(atlas::AtlasArgs),
 }
 
@@ -56,11 +58,13 @@ pub fn main() -> ExitCode {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,
         Command::Atlas(a) => a.json,
+        Command::Run(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
         Command::Atlas(a) => atlas::run(a),
+        Command::Run(a) => run::run(a, cli.config.as_deref()),
     };
     match result {
         Ok(report) => {

@@ -58,9 +58,14 @@ pub enum FemError {
     Factorisation { message: String },
     #[error(
         "no admissible step after {halvings} halvings at iteration {iteration}: every trial state \
-         inverts an element"
+         inverts an element ({element} among others)"
     )]
-    StepRejected { iteration: usize, halvings: usize },
+    StepRejected {
+        iteration: usize,
+        halvings: usize,
+        /// An element that the smallest trial step inverted.
+        element: ElementId,
+    },
     #[error(
         "not converged after {iterations} iterations: max nodal update {max_update:e} mm > tolerance \
          {tolerance:e} mm (the positions hold the last admissible iterate)"

@@ -14,7 +14,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::assembly::SparsePattern;
 use super::cholesky::SparseCholesky;
-use super::error::FemError;
+use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::state::CorotationalState;
@@ -269,6 +269,7 @@ impl<'m> StaticSolver<'m> {
         max_halvings: usize,
     ) -> Result<(f64, usize), FemError> {
         let mut alpha = 1.0;
+        let mut culprit = ElementId::Tet(0);
         for halvings in 0..=max_halvings {
             self.trial.clear();
             self.trial.extend(
@@ -286,12 +287,14 @@ impl<'m> StaticSolver<'m> {
                     .fold(0.0, f64::max);
                 return Ok((largest, halvings));
             }
+            culprit = self.state.failed_elements()[0];
             alpha *= 0.5;
         }
         self.state.update(self.model, x)?;
         Err(FemError::StepRejected {
             iteration,
             halvings: max_halvings,
+            element: culprit,
         })
     }
 }

@@ -1,7 +1,9 @@
 //! Registration of the atlas onto a patient: landmarks, the ear's side, the rigid (Kabsch /
-//! Umeyama) alignment, and (later) the deformable stage.
+//! Umeyama) alignment, the deformable stage, and the atlas fitted through them.
 
+pub mod atlas_fit;
 pub mod deform;
+pub mod eardrum;
 pub mod landmarks;
 pub mod rigid;
 

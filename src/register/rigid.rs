@@ -74,7 +74,7 @@ impl SimilarityTransform {
 }
 
 /// A fitted transform with its residual at each point.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RigidFit {
     pub transform: SimilarityTransform,
     /// |T(source_i) - target_i| in mm, per point.

@@ -6,6 +6,10 @@
 //! most twice. Then the `r` part of the link is a disk and `r`'s boundary is a manifold
 //! surface at `v` (no pinched vertex, no edge shared by four boundary faces).
 //!
+//! The union of all regions (label ≠ 0) is checked the same way, so that the outer boundary
+//! of the whole mesh is a manifold too (no slit between two regions, no two regions touching
+//! along an edge only).
+//!
 //! A defect is fixed locally and deterministically: a pinched edge ring is filled with `r` when
 //! `r` has the majority there (or is a thin region), else carved to the dominant other label;
 //! a split `r` keeps its largest piece (thin regions fill the star instead); a split
@@ -234,6 +238,51 @@ fn fix(
     }
 }
 
+/// Fixes one defect of the union of all regions (the domain's outer boundary): rings and
+/// complement pieces are filled with the dominant region around them, stray pieces and
+/// minority rings go to the outside.
+fn fix_union(star: &Star, inside: &[bool], defect: Defect, labels: &mut [u16]) -> usize {
+    let n = star.tets.len();
+    let dominant = dominant_other(star.tets.iter().copied(), labels, 0);
+    let mut set = |positions: &mut dyn Iterator<Item = usize>, label: u16| {
+        let mut changed = 0;
+        for i in positions {
+            let t = star.tets[i] as usize;
+            if labels[t] != label {
+                labels[t] = label;
+                changed += 1;
+            }
+        }
+        changed
+    };
+    match defect {
+        Defect::None => 0,
+        Defect::Edge(w) => {
+            let ring = || (0..n).filter(move |&i| star.corners[i].contains(&w));
+            let in_r = ring().filter(|&i| inside[i]).count();
+            if 2 * in_r >= ring().count() {
+                set(&mut ring().filter(|&i| !inside[i]), dominant)
+            } else {
+                set(&mut ring().filter(|&i| inside[i]), 0)
+            }
+        }
+        Defect::SplitRegion => {
+            let (mut uf, _, largest) = star.components(inside, true);
+            set(
+                &mut (0..n).filter(|&i| inside[i] && uf.find(i) != largest),
+                0,
+            )
+        }
+        Defect::SplitComplement => {
+            let (mut uf, _, largest) = star.components(inside, false);
+            set(
+                &mut (0..n).filter(|&i| !inside[i] && uf.find(i) != largest),
+                dominant,
+            )
+        }
+    }
+}
+
 /// One sweep over all nodes; returns (tets relabelled, defects seen).
 fn sweep(
     lattice: &Lattice,
@@ -285,8 +334,84 @@ fn sweep(
                 );
             }
         }
+        // the union of the regions (the outer boundary) must be manifold as well: two
+        // regions touching along an edge only, or a slit between them, would leave an edge
+        // shared by four outer faces
+        for _ in 0..4 {
+            for (i, &t) in tets.iter().enumerate() {
+                inside[i] = labels[t as usize] != 0;
+            }
+            if inside[..tets.len()].iter().all(|&x| x) {
+                break;
+            }
+            let defect = star.defect(&inside[..tets.len()]);
+            if matches!(defect, Defect::None) {
+                break;
+            }
+            defects += 1;
+            if !apply {
+                break;
+            }
+            changed += fix_union(&star, &inside[..tets.len()], defect, labels);
+        }
     }
     (changed, defects)
+}
+
+/// Fills enclosed voids: outside tets (label 0) that no path through shared faces of outside
+/// tets connects to the lattice's shell take the dominant label around them, so the outer
+/// boundary of the mesh is one surface with no bubble inside. Returns the tets filled.
+fn fill_voids(lattice: &Lattice, adj: &NodeTets, labels: &mut [u16]) -> usize {
+    let n = lattice.tets.len();
+    let shares_face = |a: usize, b: usize| {
+        lattice.tets[a]
+            .iter()
+            .filter(|v| lattice.tets[b].contains(v))
+            .count()
+            == 3
+    };
+    let mut reached = vec![false; n];
+    let mut stack: Vec<usize> = (0..n)
+        .filter(|&t| {
+            labels[t] == 0
+                && lattice.tets[t]
+                    .iter()
+                    .any(|&v| lattice.on_shell[v as usize])
+        })
+        .collect();
+    stack.iter().for_each(|&t| reached[t] = true);
+    while let Some(t) = stack.pop() {
+        for &v in &lattice.tets[t] {
+            for &u in adj.of(v as usize) {
+                let u = u as usize;
+                if !reached[u] && labels[u] == 0 && shares_face(t, u) {
+                    reached[u] = true;
+                    stack.push(u);
+                }
+            }
+        }
+    }
+    let mut void: Vec<usize> = (0..n).filter(|&t| labels[t] == 0 && !reached[t]).collect();
+    let filled = void.len();
+    // from the void's rim inwards: each pass fills the tets that touch a region
+    while !void.is_empty() {
+        let before = void.len();
+        void.retain(|&t| {
+            let around = lattice.tets[t]
+                .iter()
+                .flat_map(|&v| adj.of(v as usize).iter().copied());
+            let label = dominant_other(around, labels, 0);
+            if label == 0 {
+                return true;
+            }
+            labels[t] = label;
+            false
+        });
+        if void.len() == before {
+            break;
+        }
+    }
+    filled - void.len()
 }
 
 /// Relabels tets until every region is manifold at every vertex, or `max_sweeps` is reached.
@@ -301,8 +426,9 @@ pub fn make_manifold(
     while out.sweeps < max_sweeps {
         out.sweeps += 1;
         let (changed, _) = sweep(lattice, adj, labels, thin, true);
-        out.relabelled += changed;
-        if changed == 0 {
+        let filled = fill_voids(lattice, adj, labels);
+        out.relabelled += changed + filled;
+        if changed + filled == 0 {
             break;
         }
     }

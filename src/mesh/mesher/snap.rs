@@ -112,6 +112,7 @@ fn worst_angle_at(
     tets: &[[u32; 4]],
     labels: &[u16],
     incident: &[u32],
+    min_edge: f64,
 ) -> f64 {
     let mut worst = f64::INFINITY;
     for &t in incident.iter().filter(|&&t| labels[t as usize] != 0) {
@@ -119,10 +120,22 @@ fn worst_angle_at(
         if signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0 {
             return 0.0;
         }
+        // a tiny tet among normal ones is well shaped but fragile: a small difference in its
+        // nodes' motion inverts it
+        let short = tets[t as usize]
+            .iter()
+            .filter(|&&n| n != v)
+            .any(|&n| (nodes[n as usize] - at).norm() < min_edge);
+        if short {
+            return 0.0;
+        }
         worst = worst.min(dihedral_range(&p).0);
     }
     worst
 }
+
+/// No snapped edge gets shorter than this fraction of the lattice spacing.
+const MIN_EDGE_FRACTION: f64 = 0.2;
 
 /// Nodes on a region boundary (incident tets with two or more labels, 0 included, at least
 /// one non-zero) with their interface targets (`None` where the projection failed).
@@ -185,7 +198,10 @@ pub fn snap_to_interfaces(
             let from = nodes[*v as usize];
             for fraction in [1.0, 0.5, 0.25] {
                 let at = from + (goal - from) * fraction;
-                if worst_angle_at(*v, &at, nodes, tets, labels, adj.of(*v as usize)) >= min_angle {
+                let min_edge = MIN_EDGE_FRACTION * h;
+                let worst =
+                    worst_angle_at(*v, &at, nodes, tets, labels, adj.of(*v as usize), min_edge);
+                if worst >= min_angle {
                     nodes[*v as usize] = at;
                     moved_any = true;
                     done[i] = fraction == 1.0;

@@ -15,7 +15,8 @@
 //!   the registration modulus `regularisation_modulus_pa`: with the real 1.41e10 Pa no spring
 //!   of sensible stiffness could move anything. Springs have stiffness per unit surface area.
 //! - The static solver never accepts an inverted element: if no admissible step exists the
-//!   stage stops at the last valid state and says so.
+//!   stage keeps the last valid state and goes on with springs half as stiff (the FEM then
+//!   smooths more); after four halvings it stops there and says so.
 
 mod probe;
 
@@ -28,6 +29,15 @@ use crate::image::Sampler;
 use crate::progress::Progress;
 pub use probe::{Border, ProbeConfig, ProbeKind, probe};
 
+/// The mean border offset has reached a plateau when it no longer falls below (1 − this)
+/// times its best value so far...
+const PLATEAU: f64 = 0.02;
+/// ... for this many iterations in a row.
+const PLATEAU_ITERATIONS: usize = 3;
+
+/// Springs are halved when they would invert an element, down to this factor.
+const MIN_SPRING_SCALE: f64 = 1.0 / 16.0;
+
 /// Knobs of the deformable stage (`[deform]` in pipeline.toml).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -37,11 +47,18 @@ pub struct DeformConfig {
     /// Young's modulus given to bone during registration; other regions keep their ratio to
     /// bone [Pa].
     pub regularisation_modulus_pa: f64,
+    /// No region is softer than this fraction of bone during registration [fraction].
+    pub min_modulus_ratio: f64,
+    /// Fit the eardrum to the soft-tissue ridge in the image (off: it only follows the
+    /// manubrium).
+    pub probe_eardrum: bool,
     /// Spring stiffness per unit of surface area of a node [µN/mm per mm²].
     pub spring_stiffness_per_area: f64,
     /// A triangle's offset may differ from the median of its neighbours' by this much [mm].
     pub neighbour_tolerance_mm: f64,
-    /// Converged when the largest nodal update of an iteration is below this [mm].
+    /// Converged when 99 % of the nodes moved less than this in an iteration, or when the
+    /// mean border offset stopped falling by 2 % for 3 iterations (image noise makes the
+    /// border points jitter by a fraction of a voxel between iterations) [mm].
     pub tolerance_mm: f64,
     /// Iteration limit of the outer loop [count].
     pub max_iterations: usize,
@@ -66,6 +83,10 @@ pub struct IterationStats {
     pub mean_offset_mm: f64,
     /// Largest nodal update of the FEM solve [mm].
     pub max_update_mm: f64,
+    /// 99th percentile of the nodal updates [mm]: the convergence measure.
+    pub p99_update_mm: f64,
+    /// Factor on the spring stiffness (halved each time a step would invert an element).
+    pub spring_scale: f64,
 }
 
 /// How the stage ended.
@@ -122,6 +143,8 @@ pub fn deform(
         tangent_shift: 1e-6 * cfg.regularisation_modulus_pa,
     };
     let mut status = DeformStatus::MaxIterations;
+    let (mut best_offset, mut stalled) = (f64::INFINITY, 0usize);
+    let mut spring_scale = 1.0;
     for iteration in 1..=cfg.max_iterations {
         let borders: Vec<Option<(Border, f64)>> = probes
             .par_iter()
@@ -149,7 +172,13 @@ pub fn deform(
             return Err(DeformError::NothingFound);
         }
         let kept = screen(&borders, &neighbours, cfg.neighbour_tolerance_mm);
-        let springs = node_springs(probes, &borders, &kept, &x, cfg.spring_stiffness_per_area);
+        let springs = node_springs(
+            probes,
+            &borders,
+            &kept,
+            &x,
+            cfg.spring_stiffness_per_area * spring_scale,
+        );
         let used = kept.iter().filter(|k| **k).count();
         let mean_offset = borders
             .iter()
@@ -159,30 +188,51 @@ pub fn deform(
             / used.max(1) as f64;
         let before = x.clone();
         let outcome = solver.solve_with_springs(&mut x, &springs, &options);
-        let max_update = x
-            .iter()
-            .zip(&before)
-            .map(|(p, q)| (p - q).norm())
-            .fold(0.0, f64::max);
+        let mut updates: Vec<f64> = x.iter().zip(&before).map(|(p, q)| (p - q).norm()).collect();
+        updates.sort_by(f64::total_cmp);
+        let max_update = updates.last().copied().unwrap_or(0.0);
+        let p99_update = updates
+            .get(updates.len() * 99 / 100)
+            .copied()
+            .unwrap_or(0.0);
         history.push(IterationStats {
             iteration,
             borders_found: found,
             borders_used: used,
             mean_offset_mm: mean_offset,
             max_update_mm: max_update,
+            p99_update_mm: p99_update,
+            spring_scale,
         });
         bar.inc(1);
         match outcome {
             Ok(_) | Err(FemError::NotConverged { .. }) => {}
+            // the springs pull some element inside out: keep the last admissible state and
+            // go on with softer springs (the FEM then smooths more); give up when they are
+            // too soft to register anything
             Err(e @ FemError::StepRejected { .. }) => {
-                status = DeformStatus::InversionGuard {
-                    message: e.to_string(),
-                };
-                break;
+                spring_scale *= 0.5;
+                if spring_scale < MIN_SPRING_SCALE {
+                    status = DeformStatus::InversionGuard {
+                        message: e.to_string(),
+                    };
+                    break;
+                }
+                stalled = 0;
+                continue;
             }
             Err(e) => return Err(e.into()),
         }
-        if max_update < cfg.tolerance_mm {
+        // equilibrium: the nodes stopped moving, or the borders stopped getting closer (in a
+        // noisy image the border points jitter by a fraction of a voxel from one iteration
+        // to the next, so the nodes never stop exactly)
+        best_offset = best_offset.min(mean_offset);
+        stalled = if mean_offset > (1.0 - PLATEAU) * best_offset && iteration > 1 {
+            stalled + 1
+        } else {
+            0
+        };
+        if p99_update < cfg.tolerance_mm || stalled >= PLATEAU_ITERATIONS {
             status = DeformStatus::Converged;
             break;
         }

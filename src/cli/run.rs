@@ -1,0 +1,100 @@
+//! `otoatlas run`: register the atlas onto one case and write the patient model.
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+
+use super::Report;
+use crate::Error;
+use crate::config::Config;
+use crate::ear::Side;
+use crate::pipeline::{Case, RunOptions, Stage, run_case};
+
+/// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
+/// segmentation), export.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Outputs under OUT: registered/surfaces/{malleus,incus,stapes,eardrum}.ply,
+registered/volume.vtu, registered/landmarks.{json,fcsv}, metrics.json, timings.json, and
+stages/ (one artefact per stage, for --from).
+
+Examples:
+  otoatlas run sample_cases/case-000 --out out/case-000
+  otoatlas run scan/ --landmarks picks.fcsv --side left --out out/scan
+  otoatlas run sample_cases/case-000 --out out/case-000 --from deform --config tuned.toml"
+)]
+pub struct RunArgs {
+    /// The case folder (dicom/ or image.nii.gz, landmarks, optional segmentation/) or an image.
+    pub case: PathBuf,
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Landmark file to use instead of the case's (.fcsv, .mrk.json, .json, .csv).
+    #[arg(long, value_name = "FILE")]
+    pub landmarks: Option<PathBuf>,
+    /// Atlas folder instead of the embedded default.
+    #[arg(long, value_name = "DIR")]
+    pub atlas: Option<PathBuf>,
+    /// The side of the ear (overrides the landmark file and the DICOM Laterality).
+    #[arg(long, value_enum)]
+    pub side: Option<Side>,
+    /// Start at this stage, reusing the artefacts of the earlier ones in OUT/stages/.
+    #[arg(long, value_enum, default_value = "ingest")]
+    pub from: Stage,
+    /// Print machine-readable JSON (the metrics) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
+    let config = Config::load(config)?;
+    let case = Case::open(&args.case)?;
+    let opts = RunOptions {
+        out: args.out.clone(),
+        from: args.from,
+        landmarks: args.landmarks.clone(),
+        atlas: args.atlas.clone(),
+        side: args.side,
+    };
+    let summary = run_case(&case, &opts, &config)?;
+    let m = &summary.metrics;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}), deform {} after {} iterations",
+        case.id,
+        m["side"].as_str().unwrap_or("?"),
+        m["rigid"]["rms_mm"].as_f64().unwrap_or(f64::NAN),
+        m["rigid"]["scale"].as_f64().unwrap_or(f64::NAN),
+        m["deform"]["status"]["status"].as_str().unwrap_or("?"),
+        m["deform"]["iterations"]
+    );
+    if let Some(scores) = m["scores"].as_object() {
+        let _ = writeln!(
+            text,
+            "\n{:<10} {:>12} {:>12} {:>10} {:>10}",
+            "structure", "MASD rigid", "MASD final", "HD95", "improved"
+        );
+        for (name, s) in scores {
+            let _ = writeln!(
+                text,
+                "{:<10} {:>9.3} mm {:>9.3} mm {:>7.3} mm {:>9.0} %",
+                name,
+                s["rigid"]["masd"].as_f64().unwrap_or(f64::NAN),
+                s["registered"]["masd"].as_f64().unwrap_or(f64::NAN),
+                s["registered"]["hd95"].as_f64().unwrap_or(f64::NAN),
+                100.0 * s["masd_improvement"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+    }
+    let _ = writeln!(text);
+    for (stage, secs) in &summary.timings {
+        let _ = write!(text, "{} {:.2} s  ", stage.name(), secs);
+    }
+    let _ = writeln!(text, "\nwrote {}", summary.out.display());
+    Ok(Report {
+        text,
+        json: summary.metrics,
+    })
+}

@@ -1,0 +1,389 @@
+//! `run`: one case through every stage — ingest, landmarks, rigid, deform, score, export —
+//! each timed, each leaving its artefact under `OUT/stages/` so that `--from STAGE` resumes
+//! from what the earlier stages wrote. Outputs (`OUT/registered/`, `metrics.json`,
+//! `timings.json`) are written atomically, file by file, only after the stages succeeded.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::Point3;
+use serde_json::{Value, json};
+
+use super::Case;
+use super::score::{Reference, StructureScore, score};
+use super::stage::Stage;
+use crate::atlas::Atlas;
+use crate::atlas::export::export_atlas;
+use crate::config::Config;
+use crate::ear::{Landmarks, Side};
+use crate::image::{self, LoadedImage, Sampler};
+use crate::io_util::write_atomic;
+use crate::mesh::io::ply::{VertexAttributes, write_ply};
+use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
+use crate::register::atlas_fit::{deform_atlas, fit_landmarks, place};
+use crate::register::deform::DeformStatus;
+use crate::register::landmarks::{
+    LandmarkFile, PromptInput, check_landmarks, prompt_landmarks, read_landmarks, write_json,
+};
+use crate::register::rigid::RigidFit;
+use crate::{Error, progress};
+
+/// What `run` is asked to do besides the case and the configuration.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    pub out: PathBuf,
+    /// The first stage to run; earlier stages are read from `OUT/stages/`.
+    pub from: Stage,
+    /// A landmark file that replaces the case's.
+    pub landmarks: Option<PathBuf>,
+    /// An atlas folder instead of the embedded default.
+    pub atlas: Option<PathBuf>,
+    /// The side of the ear, overriding the landmark file and the DICOM.
+    pub side: Option<Side>,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    pub metrics: Value,
+    pub timings: Vec<(Stage, f64)>,
+    pub out: PathBuf,
+}
+
+/// Where the side of the ear came from.
+fn side_of(
+    opts: &RunOptions,
+    file: &LandmarkFile,
+    image: &LoadedImage,
+) -> Result<(Side, &'static str), Error> {
+    if let Some(s) = opts.side {
+        return Ok((s, "--side"));
+    }
+    if let Some(s) = file.side {
+        return Ok((s, "landmark file"));
+    }
+    if let Some(s) = image.info.laterality.as_deref().and_then(Side::parse) {
+        return Ok((s, "DICOM laterality"));
+    }
+    Err(Error::Usage(
+        "the side of the ear is unknown: the image has no Laterality (0020,0060) or \
+         ImageLaterality (0020,0062) and the landmark file does not say; give --side left or \
+         --side right"
+            .into(),
+    ))
+}
+
+fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
+    out.join("stages").join(stage.artefact())
+}
+
+fn write_json_file(path: &Path, value: &Value) -> Result<(), Error> {
+    let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
+    write_atomic(path, text.as_bytes())
+}
+
+fn read_artefact(out: &Path, stage: Stage, from: Stage) -> Result<Value, Error> {
+    let path = artefact_path(out, stage);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        Error::Usage(format!(
+            "--from {}: cannot read {} from an earlier run ({e}); run from an earlier stage",
+            from.name(),
+            path.display()
+        ))
+    })?;
+    serde_json::from_str(&text).map_err(|e| {
+        Error::Usage(format!(
+            "{}: not a {} artefact ({e}); run from an earlier stage",
+            path.display(),
+            stage.name()
+        ))
+    })
+}
+
+/// The patient's landmarks: `--landmarks`, the case's file, or the prompt on a terminal.
+fn landmark_input(
+    case: &Case,
+    opts: &RunOptions,
+    sampler: &Sampler,
+) -> Result<LandmarkFile, Error> {
+    if let Some(path) = opts.landmarks.as_ref().or(case.landmarks.as_ref()) {
+        return Ok(read_landmarks(path)?);
+    }
+    if std::io::stdin().is_terminal() {
+        progress::log("no landmark file: type the three landmarks");
+        let landmarks = prompt_landmarks(PromptInput::Terminal, sampler)?;
+        return Ok(LandmarkFile {
+            landmarks,
+            side: None,
+            notes: vec!["typed at the prompt".into()],
+        });
+    }
+    Err(Error::Usage(format!(
+        "{}: no landmarks (landmarks.fcsv, .mrk.json, .json or .csv); give --landmarks FILE, \
+         pick them with `otoatlas landmarks {}`, or run on a terminal to be prompted",
+        case.root.display(),
+        case.root.display()
+    )))
+}
+
+fn geometry_json(loaded: &LoadedImage, source: &Path) -> Value {
+    let v = &loaded.volume;
+    json!({
+        "image": source,
+        "format": loaded.info.format,
+        "dims": v.dims,
+        "spacing": v.spacing,
+        "origin": [v.origin.x, v.origin.y, v.origin.z],
+        "direction": v.direction_row_major(),
+        "laterality": loaded.info.laterality,
+        "series_uid_sha256": loaded.info.series_uid_sha256,
+    })
+}
+
+fn points_json(l: &Landmarks) -> Value {
+    json!({
+        "umbo": [l.umbo.x, l.umbo.y, l.umbo.z],
+        "incudomalleolar": [l.incudomalleolar.x, l.incudomalleolar.y, l.incudomalleolar.z],
+        "incudostapedial": [l.incudostapedial.x, l.incudostapedial.y, l.incudostapedial.z],
+    })
+}
+
+/// Runs `case` through the pipeline.
+pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSummary, Error> {
+    let out = &opts.out;
+    let mut timings: Vec<(Stage, f64)> = Vec::new();
+    let started = Instant::now();
+
+    // ingest: always read (the later stages need the voxels); on resume, the image must be
+    // the one the earlier run saw
+    let t = Instant::now();
+    progress::log(format!("{}: ingest {}", case.id, case.image.display()));
+    let loaded = image::load(&case.image, None, &config.ingest)?;
+    let geometry = geometry_json(&loaded, &case.image);
+    if opts.from <= Stage::Ingest {
+        write_json_file(&artefact_path(out, Stage::Ingest), &geometry)?;
+    } else {
+        let before = read_artefact(out, Stage::Ingest, opts.from)?;
+        if before != geometry {
+            return Err(Error::Usage(format!(
+                "--from {}: the image differs from the one in {}; run from ingest",
+                opts.from.name(),
+                artefact_path(out, Stage::Ingest).display()
+            )));
+        }
+    }
+    let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
+        Error::Usage(format!(
+            "{}: the image geometry is degenerate",
+            case.image.display()
+        ))
+    })?;
+    let step = loaded
+        .volume
+        .spacing
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    timings.push((Stage::Ingest, t.elapsed().as_secs_f64()));
+
+    // landmarks and side
+    let t = Instant::now();
+    let file = if opts.from <= Stage::Landmarks {
+        landmark_input(case, opts, &sampler)?
+    } else {
+        read_landmarks(&artefact_path(out, Stage::Landmarks))?
+    };
+    let (side, side_source) = side_of(opts, &file, &loaded)?;
+    let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
+    let patient = file.landmarks;
+    let atlas_landmarks = atlas.landmark_positions(atlas.nodes());
+    check_landmarks(
+        &patient,
+        Some(&sampler),
+        Some(&atlas_landmarks),
+        &config.landmarks,
+    )?;
+    if opts.from <= Stage::Landmarks {
+        write_atomic(
+            &artefact_path(out, Stage::Landmarks),
+            write_json(&patient, Some(side)).as_bytes(),
+        )?;
+        timings.push((Stage::Landmarks, t.elapsed().as_secs_f64()));
+    }
+    progress::log(format!(
+        "{}: {} ear (from the {side_source}), atlas '{}'",
+        case.id,
+        side.as_str(),
+        atlas.name
+    ));
+
+    // rigid
+    let t = Instant::now();
+    let fit: RigidFit = if opts.from <= Stage::Rigid {
+        let fit = fit_landmarks(&atlas, &patient, config.rigid.with_scale).ok_or_else(|| {
+            Error::Usage("the landmarks are degenerate: no rigid fit exists".into())
+        })?;
+        let value = json!({
+            "atlas_to_patient": fit.transform,
+            "matrix4": fit.transform.matrix4().transpose().as_slice(),
+            "residuals_mm": fit.residuals_mm,
+            "rms_mm": fit.rms_mm,
+            "with_scale": config.rigid.with_scale,
+        });
+        write_json_file(&artefact_path(out, Stage::Rigid), &value)?;
+        timings.push((Stage::Rigid, t.elapsed().as_secs_f64()));
+        fit
+    } else {
+        let v = read_artefact(out, Stage::Rigid, opts.from)?;
+        RigidFit {
+            transform: serde_json::from_value(v["atlas_to_patient"].clone())
+                .map_err(|e| Error::Usage(format!("stages/rigid.json: atlas_to_patient: {e}")))?,
+            residuals_mm: serde_json::from_value(v["residuals_mm"].clone()).unwrap_or_default(),
+            rms_mm: v["rms_mm"].as_f64().unwrap_or(f64::NAN),
+        }
+    };
+    progress::log(format!(
+        "{}: rigid fit, scale {:.3}, landmark RMS {:.3} mm",
+        case.id, fit.transform.scale, fit.rms_mm
+    ));
+    let placed = place(&atlas, &fit);
+
+    // deform
+    let t = Instant::now();
+    let deform_vtu = out.join("stages").join("deform.vtu");
+    let (nodes, deform_json): (Vec<Point3<f64>>, Value) = if opts.from <= Stage::Deform {
+        let (result, eardrum) = deform_atlas(&atlas, &placed, &sampler, step, &config.deform)
+            .map_err(|e| Error::Usage(e.to_string()))?;
+        if let DeformStatus::InversionGuard { message } = &result.status {
+            progress::log(format!(
+                "{}: deformable stage stopped at its last valid state: {message}",
+                case.id
+            ));
+        }
+        let value = json!({
+            "status": result.status,
+            "iterations": result.history.len(),
+            "history": result.history,
+            "eardrum": eardrum,
+            "probe_step_mm": step,
+        });
+        let mut mesh = atlas.mesh.clone();
+        mesh.tets.nodes = result.positions.clone();
+        write_vtu(&deform_vtu, &mesh, &[], VtuEncoding::Base64)?;
+        write_json_file(&artefact_path(out, Stage::Deform), &value)?;
+        timings.push((Stage::Deform, t.elapsed().as_secs_f64()));
+        (result.positions, value)
+    } else {
+        let value = read_artefact(out, Stage::Deform, opts.from)?;
+        let (mesh, _) = read_vtu(&deform_vtu)?;
+        if mesh.tets.nodes.len() != atlas.nodes().len() {
+            return Err(Error::Usage(format!(
+                "{}: {} nodes, the atlas has {}; run from deform",
+                deform_vtu.display(),
+                mesh.tets.nodes.len(),
+                atlas.nodes().len()
+            )));
+        }
+        (mesh.tets.nodes, value)
+    };
+
+    // score (with a segmentation)
+    let t = Instant::now();
+    let scores = match &case.segmentation {
+        Some(seg) if opts.from <= Stage::Score => {
+            let reference = Reference::load(seg, &config.ingest)?;
+            let rigid = score(&atlas, &placed, &reference, step)?;
+            let registered = score(&atlas, &nodes, &reference, step)?;
+            let value = scores_json(&rigid, &registered);
+            write_json_file(&artefact_path(out, Stage::Score), &value)?;
+            timings.push((Stage::Score, t.elapsed().as_secs_f64()));
+            Some((value, registered))
+        }
+        Some(_) => Some((
+            read_artefact(out, Stage::Score, opts.from)?,
+            Default::default(),
+        )),
+        None => None,
+    };
+
+    // export
+    let t = Instant::now();
+    let registered_dir = out.join("registered");
+    let mut files = export_atlas(&atlas, &nodes, &registered_dir)?.files;
+    if let Some((_, per_structure)) = &scores {
+        for (name, s) in per_structure {
+            let path = registered_dir.join("deviation").join(format!("{name}.ply"));
+            let part = crate::atlas::Part::STRUCTURES
+                .into_iter()
+                .find(|p| p.name() == name);
+            if let Some(part) = part {
+                let attrs = VertexAttributes {
+                    quality: Some(s.deviation.clone()),
+                    colors: Some(s.colours.clone()),
+                };
+                write_ply(&path, &atlas.part_surface(part, &nodes), &attrs)?;
+                files.push(path);
+            }
+        }
+    }
+    write_json_file(
+        &artefact_path(out, Stage::Export),
+        &json!({ "files": files }),
+    )?;
+    timings.push((Stage::Export, t.elapsed().as_secs_f64()));
+
+    let metrics = json!({
+        "case": case.id,
+        "side": side.as_str(),
+        "side_source": side_source,
+        "atlas": atlas.name,
+        "image": geometry,
+        "landmarks": {
+            "patient": points_json(&patient),
+            "registered": points_json(&atlas.landmark_positions(&nodes)),
+        },
+        "rigid": {
+            "atlas_to_patient": fit.transform,
+            "scale": fit.transform.scale,
+            "residuals_mm": fit.residuals_mm,
+            "rms_mm": fit.rms_mm,
+        },
+        "deform": deform_json,
+        "scores": scores.as_ref().map(|(v, _)| v.clone()),
+    });
+    write_json_file(&out.join("metrics.json"), &metrics)?;
+    let mut timing_map = serde_json::Map::new();
+    for (s, secs) in &timings {
+        timing_map.insert(s.name().into(), json!(secs));
+    }
+    timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
+    write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
+    Ok(RunSummary {
+        metrics,
+        timings,
+        out: out.clone(),
+    })
+}
+
+/// Per structure: the rigid-only and the registered surface distances, and the MASD
+/// improvement of the deformable stage.
+fn scores_json(
+    rigid: &std::collections::BTreeMap<String, StructureScore>,
+    registered: &std::collections::BTreeMap<String, StructureScore>,
+) -> Value {
+    let mut map = serde_json::Map::new();
+    for (name, r) in registered {
+        let before = rigid.get(name).map(|s| &s.distances);
+        let improvement = before.map(|b| 1.0 - r.distances.masd / b.masd);
+        map.insert(
+            name.clone(),
+            json!({
+                "registered": r.distances,
+                "rigid": before,
+                "masd_improvement": improvement,
+            }),
+        );
+    }
+    Value::Object(map)
+}

@@ -1,0 +1,78 @@
+//! Scoring a registration against a manual segmentation: each structure's registered surface
+//! against the segmentation's surface of the same name, with the surface distances of
+//! `meshdev` (MASD, HD95, ... as defined in the metrics note), and the per-vertex deviation
+//! maps of the registered surfaces.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use nalgebra::Point3;
+use serde::Serialize;
+
+use crate::Error;
+use crate::atlas::{Atlas, Part};
+use crate::config::IngestConfig;
+use crate::mesh::TriMesh;
+use crate::meshdev::structures::{default_label_table, load_structures};
+use crate::meshdev::{CompareOptions, MeshDevError, SurfaceDistances, compare};
+
+/// The reference surfaces of a segmentation, by structure name.
+pub struct Reference {
+    pub surfaces: BTreeMap<String, TriMesh>,
+}
+
+impl Reference {
+    /// Reads a segmentation folder (per-structure meshes, or a label map with the default
+    /// label table: 1 malleus, 2 incus, 3 stapes, 4 eardrum).
+    pub fn load(path: &Path, ingest: &IngestConfig) -> Result<Reference, Error> {
+        let structures = load_structures(path, &default_label_table(), ingest)?;
+        Ok(Reference {
+            surfaces: structures
+                .into_iter()
+                .map(|s| (s.name.to_ascii_lowercase(), s.mesh))
+                .collect(),
+        })
+    }
+}
+
+/// One structure's score.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureScore {
+    pub distances: SurfaceDistances,
+    /// Signed distance of each registered-surface vertex to the reference [mm].
+    #[serde(skip)]
+    pub deviation: Vec<f64>,
+    #[serde(skip)]
+    pub colours: Vec<[u8; 3]>,
+}
+
+/// Scores the atlas with its nodes at `nodes` against `reference`, per structure present in
+/// both; `tolerance_mm` is the surface-Dice tolerance (one voxel).
+pub fn score(
+    atlas: &Atlas,
+    nodes: &[Point3<f64>],
+    reference: &Reference,
+    tolerance_mm: f64,
+) -> Result<BTreeMap<String, StructureScore>, MeshDevError> {
+    let options = CompareOptions::with_tolerance(tolerance_mm);
+    let mut out = BTreeMap::new();
+    for part in Part::STRUCTURES {
+        let Some(truth) = reference.surfaces.get(part.name()) else {
+            continue;
+        };
+        if atlas.labels_of(part).is_empty() {
+            continue;
+        }
+        let test = atlas.part_surface(part, nodes);
+        let c = compare(&test, truth, &options)?;
+        out.insert(
+            part.name().to_string(),
+            StructureScore {
+                distances: c.distances,
+                deviation: c.deviation.quality,
+                colours: c.deviation.colours,
+            },
+        );
+    }
+    Ok(out)
+}
