@@ -29,6 +29,8 @@ pub enum Error {
     MeshIo(#[from] crate::mesh::io::MeshIoError),
     #[error(transparent)]
     Anatomy(#[from] crate::atlas::AnatomyError),
+    #[error(transparent)]
+    Phantom(#[from] crate::phantom::PhantomError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -50,6 +52,10 @@ impl Error {
             | Error::MeshIo(_)
             | Error::Anatomy(_)
             | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Phantom(e) => match e {
+                crate::phantom::PhantomError::Anatomy { .. } => ExitStatus::CaseFailed,
+                _ => ExitStatus::BadInput,
+            },
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }
     }

@@ -3,6 +3,7 @@
 
 mod inspect;
 mod landmarks;
+mod phantom;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,6 +32,7 @@ pub struct Cli {
 pub enum Command {
     Inspect(inspect::InspectArgs),
     Landmarks(landmarks::LandmarksArgs),
+    Phantom(phantom::PhantomArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script.
@@ -53,10 +55,12 @@ pub fn main() -> ExitCode {
     let json = match &cli.command {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,
+        Command::Phantom(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
+        Command::Phantom(a) => phantom::run(a),
     };
     match result {
         Ok(report) => {

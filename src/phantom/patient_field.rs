@@ -1,0 +1,69 @@
+//! The patient in the scanner: the ear's tissue field and its label map in LPS patient space,
+//! each point pulled back into the atlas frame by the explicit inverse warp.
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+
+use super::imaging::{FieldSample, Grid, TissueField};
+use super::patient::{ChainTissue, PatientAnatomy};
+use super::scene::EarScene;
+use super::warp::PatientWarp;
+use crate::meshdev::structures::DEFAULT_LABELS;
+
+/// The tissue field of a patient in scanner space.
+pub struct PatientField<'a> {
+    pub scene: EarScene<'a>,
+    pub warp: &'a PatientWarp,
+}
+
+impl TissueField for PatientField<'_> {
+    fn sample(&self, x: &Point3<f64>, footprint_mm: f64) -> FieldSample {
+        let a = self.warp.to_atlas(x);
+        let atlas = self.scene.sample(&a, footprint_mm / self.warp.scale);
+        FieldSample {
+            hu: atlas.hu,
+            clearance_mm: atlas.clearance_mm / self.warp.inverse_lipschitz(),
+        }
+    }
+}
+
+/// The label map of the ossicles and the eardrum on `grid` (i fastest), numbered as
+/// `meshdev`'s default structures (1 malleus, 2 incus, 3 stapes, 4 eardrum, 0 none): an
+/// ossicle where the
+/// voxel centre lies in it; the eardrum where the membrane passes within half a voxel of the
+/// centre (a one-voxel sheet, since the real one is far thinner than a voxel).
+pub fn label_map(
+    patient: &PatientAnatomy,
+    scene: &EarScene,
+    warp: &PatientWarp,
+    grid: &Grid,
+) -> Vec<u8> {
+    let [nx, ny, nz] = grid.dims;
+    let half_voxel = 0.5 * grid.spacing.iter().copied().fold(0.0, f64::max) / warp.scale;
+    let mut labels = vec![0u8; nx * ny * nz];
+    labels
+        .par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(k, out)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let x = grid.world(Vector3::new(i as f64, j as f64, k as f64));
+                    let a = warp.to_atlas(&x);
+                    // outside the chain's box, the chain is nothing (far = 0)
+                    match patient.distances(&a, 0.0).tissue() {
+                        Some(ChainTissue::Bone(o)) => {
+                            out[i + nx * j] = DEFAULT_LABELS[o as usize].0 as u8;
+                            continue;
+                        }
+                        Some(ChainTissue::Soft) => continue,
+                        None => {}
+                    }
+                    let drum = scene.drum_position(&a);
+                    if drum.s <= 1.0 && drum.height.abs() <= half_voxel {
+                        out[i + nx * j] = DEFAULT_LABELS[3].0 as u8;
+                    }
+                }
+            }
+        });
+    labels
+}
