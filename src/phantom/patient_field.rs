@@ -67,3 +67,73 @@ pub fn label_map(
         });
     labels
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::Anatomy;
+    use crate::phantom::imaging::{ImagingParams, render};
+    use crate::phantom::scene::{CavityParams, TissueLevels};
+    use crate::phantom::warp::{Deformation, WaveMode};
+    use nalgebra::{Matrix3, Rotation3};
+
+    /// The same field, but never claiming a clearance: every voxel is supersampled.
+    struct Everywhere<'a>(&'a PatientField<'a>);
+
+    impl TissueField for Everywhere<'_> {
+        fn sample(&self, p: &Point3<f64>, footprint_mm: f64) -> FieldSample {
+            FieldSample {
+                clearance_mm: 0.0,
+                ..self.0.sample(p, footprint_mm)
+            }
+        }
+    }
+
+    #[test]
+    fn adaptive_supersampling_equals_supersampling_every_voxel() {
+        let patient = PatientAnatomy::plain(Anatomy::default_right().unwrap());
+        let warp = PatientWarp {
+            scale: 0.95,
+            deformation: Deformation {
+                modes: vec![WaveMode {
+                    amplitude_mm: [0.4, -0.3, 0.2],
+                    wave_vector: [0.3, -0.2, 0.4],
+                    phase: 1.0,
+                }],
+            },
+            rotation: Rotation3::from_euler_angles(0.4, 2.0, -0.7),
+            translation: Vector3::new(-20.0, 35.0, 4.0),
+        };
+        let scene = EarScene::new(&patient, TissueLevels::default(), CavityParams::default());
+        let field = PatientField { scene, warp: &warp };
+        // a 6 mm cube around the umbo: manubrium, eardrum sheet, canal, cavity
+        let umbo = warp.to_patient(&patient.anatomy.landmarks().umbo);
+        let grid = Grid {
+            dims: [20, 20, 20],
+            spacing: [0.3; 3],
+            origin: umbo.coords - Vector3::from_element(3.0),
+            direction: Matrix3::identity(),
+        };
+        let params = ImagingParams {
+            noise_sd_hu: 0.0,
+            psf_fwhm_mm: 0.0,
+            ..ImagingParams::clean(1)
+        };
+        let adaptive = render(&field, &grid, &params);
+        let full = render(&Everywhere(&field), &grid, &params);
+        let worst = adaptive
+            .data
+            .iter()
+            .zip(&full.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 0.01, "largest difference {worst} HU");
+        // the sheet shows as partial volume: values strictly between air and soft tissue
+        let partial = adaptive
+            .data
+            .iter()
+            .filter(|v| **v > -990.0 && **v < -100.0)
+            .count();
+        assert!(partial > 50, "{partial} partial-volume voxels");
+    }
+}
