@@ -281,3 +281,43 @@ fn bad_arguments_exit_with_code_2_and_a_clear_message() {
     // nothing was written for the refused runs
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+fn committed_sample_cases_are_what_the_generator_makes_and_read_back() {
+    let root = common::root().join("sample_cases");
+    let cfg = Config::default_config().unwrap().ingest;
+    let mut sides = Vec::new();
+    for k in 1..=3 {
+        let dir = root.join(format!("case-{k:03}"));
+        let case = otoatlas::pipeline::Case::open(&dir).unwrap();
+        assert_eq!(case.image, dir.join("dicom"));
+        assert_eq!(case.landmarks, Some(dir.join("landmarks.fcsv")));
+        assert_eq!(case.segmentation, Some(dir.join("segmentation")));
+        let truth: serde_json::Value =
+            serde_json::from_slice(&fs::read(dir.join("truth.json")).unwrap()).unwrap();
+        let loaded = image::load(&case.image, None, &cfg).unwrap();
+        assert_eq!(
+            serde_json::json!(loaded.volume.dims),
+            truth["image"]["dims"]
+        );
+        let side = truth["side"].as_str().unwrap().to_string();
+        let code = if side == "left" { "L" } else { "R" };
+        assert_eq!(loaded.info.laterality.as_deref(), Some(code));
+        sides.push(side);
+    }
+    assert!(sides.iter().any(|s| s == "left") && sides.iter().any(|s| s == "right"));
+    // the cheapest one (0.298 mm) is regenerated: the committed files are up to date
+    // (after a change to the generator, run scripts/make-sample-cases.sh)
+    let seed = 2026 + 1;
+    let case = generate_case(seed, &PhantomOptions::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let fresh = write_case(&dir.path().join("case-002"), &case).unwrap();
+    let (a, b) = (tree(&root.join("case-002")), tree(&fresh));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (name, bytes) in &a {
+        assert!(
+            bytes == &b[name],
+            "sample_cases/case-002/{name} is stale: run scripts/make-sample-cases.sh"
+        );
+    }
+}

@@ -340,3 +340,57 @@ fn deformation_record(warp: &PatientWarp, grid: &Grid) -> DeformationRecord {
         min_jacobian_determinant: min_det,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drawn_deformations_stay_within_0_8_mm_and_invertible() {
+        for seed in 0..40 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let d = draw_deformation(&mut rng);
+            assert!(d.displacement_bound() <= 0.8 + 1e-12);
+            let g = d.gradient_bound();
+            assert!(g < 0.52, "seed {seed}: gradient bound {g}");
+            // sampled: displacement within the bound, Jacobian determinant at least (1 - g)³
+            for _ in 0..200 {
+                let w = Vector3::from_fn(|_, _| uniform(&mut rng, -30.0, 30.0));
+                assert!(d.displacement(&w).norm() <= d.displacement_bound());
+                let det = (Matrix3::identity() + d.jacobian(&w)).determinant();
+                assert!(det >= (1.0 - g).powi(3) - 1e-12, "seed {seed}: {det}");
+            }
+        }
+    }
+
+    #[test]
+    fn rotations_are_proper_and_spread_over_so3() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let n = 2000;
+        let mut mean_z = Vector3::zeros();
+        for _ in 0..n {
+            let r = uniform_rotation(&mut rng);
+            assert!((r.matrix().determinant() - 1.0).abs() < 1e-12);
+            mean_z += r * Vector3::z();
+        }
+        // a uniform rotation sends a fixed axis uniformly over the sphere: mean near zero
+        assert!((mean_z / n as f64).norm() < 0.06);
+    }
+
+    #[test]
+    fn options_outside_their_ranges_are_refused() {
+        for spacing in [0.1, 0.31, f64::NAN] {
+            let o = PhantomOptions {
+                spacing_mm: Some(spacing),
+                ..PhantomOptions::default()
+            };
+            assert!(matches!(o.check(), Err(PhantomError::Spacing(_))));
+        }
+        let o = PhantomOptions {
+            noise_sd_hu: Some(-1.0),
+            ..PhantomOptions::default()
+        };
+        assert!(matches!(o.check(), Err(PhantomError::Noise(_))));
+        assert!(PhantomOptions::default().check().is_ok());
+    }
+}

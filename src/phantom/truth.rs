@@ -2,14 +2,14 @@
 //! tetrahedra on a fine lattice of the atlas frame, and the eardrum cone finely triangulated,
 //! all mapped forward into patient space) and the record written as `truth.json`.
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::imaging::ImagingParams;
 use super::patient::PatientAnatomy;
 use super::scene::{CavityParams, TissueLevels};
-use super::variability::{Ossicle, OssicleMotion, ShapeDetail};
+use super::variability::{OssicleMotion, ShapeDetail};
 use super::warp::{Deformation, PatientWarp};
 use crate::atlas::{Eardrum, Side};
 use crate::ear::Landmarks;
@@ -202,31 +202,6 @@ pub struct Truth {
     pub cavity: CavityParams,
     /// Label values of `segmentation/labels.nii.gz`.
     pub labels: Vec<(u16, String)>,
-}
-
-/// Signed volume of the landmark triangle's cone to a point: `(ISJ - umbo) × (IMJ - umbo) ·
-/// (p - umbo)`; its sign against the footplate normal tells a right ear from a left one.
-pub fn handedness(l: &Landmarks, footplate_normal: &Vector3<f64>) -> f64 {
-    (l.incudostapedial - l.umbo)
-        .cross(&(l.incudomalleolar - l.umbo))
-        .dot(footplate_normal)
-}
-
-/// The ossicle a surface file is named after, in file order (then the eardrum).
-pub fn surface_names() -> [&'static str; 4] {
-    [
-        Ossicle::Malleus.name(),
-        Ossicle::Incus.name(),
-        Ossicle::Stapes.name(),
-        "eardrum",
-    ]
-}
-
-/// The world point of a lattice index in a record's grid (used by tests and checks).
-pub fn grid_point(g: &GridRecord, ijk: [f64; 3]) -> Point3<f64> {
-    let d = Matrix3::from_row_slice(&g.direction);
-    let step = Vector3::from_fn(|c, _| g.spacing_mm[c] * ijk[c]);
-    Point3::from(Vector3::from(g.origin) + d * step)
 }
 
 #[cfg(test)]
