@@ -235,11 +235,11 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
     };
     let imaging_seed: u64 = rng.random();
     let exact_atlas = anatomy.landmarks();
-    let patient = PatientAnatomy { anatomy, detail };
+    let patient = PatientAnatomy::new(anatomy, detail);
 
     // truth surfaces, then the field of view around them
     let [m, i, s] = ossicle_surfaces(&patient);
-    let drum = eardrum_surface(patient.anatomy.eardrum());
+    let drum = eardrum_surface(patient.anatomy().eardrum());
     let surfaces: Vec<(&'static str, TriMesh)> = [
         ("malleus", m),
         ("incus", i),
@@ -288,7 +288,7 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
         pose: PoseRecord::from(&warp),
         ossicle_motions: motions,
         deformation: deformation_record(&warp, &grid),
-        shape_detail: patient.detail.clone(),
+        shape_detail: patient.detail().clone(),
         image: GridRecord {
             dims: grid.dims,
             spacing_mm: grid.spacing,

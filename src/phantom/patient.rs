@@ -22,11 +22,43 @@ const BANDS: [Region; 6] = [
     Region::StapediusTendon,
 ];
 
-/// A patient's chain: anatomy (after the ossicle motions) plus shape detail.
+/// A patient's chain: anatomy (after the ossicle motions) plus shape detail, with a bounding
+/// box per structure so that distant structures cost one box distance.
 #[derive(Debug, Clone)]
 pub struct PatientAnatomy {
-    pub anatomy: Anatomy,
-    pub detail: ShapeDetail,
+    anatomy: Anatomy,
+    detail: ShapeDetail,
+    /// Boxes holding each ossicle (with its detail), both joints, each band.
+    bone_boxes: [Aabb; 3],
+    joint_box: Aabb,
+    band_boxes: Vec<(Region, Aabb)>,
+}
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy)]
+struct Aabb {
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+}
+
+impl Aabb {
+    fn empty() -> Aabb {
+        Aabb {
+            lo: Vector3::from_element(f64::INFINITY),
+            hi: Vector3::from_element(f64::NEG_INFINITY),
+        }
+    }
+
+    fn add(&mut self, p: &Vector3<f64>, r: f64) {
+        self.lo = self.lo.inf(&p.add_scalar(-r));
+        self.hi = self.hi.sup(&p.add_scalar(r));
+    }
+
+    /// Distance from `p` to the box (0 inside).
+    #[inline]
+    fn distance(&self, p: &Point3<f64>) -> f64 {
+        Vector3::from_fn(|c, _| (self.lo[c] - p[c]).max(p[c] - self.hi[c]).max(0.0)).norm()
+    }
 }
 
 /// What the chain puts at a point.
@@ -93,12 +125,67 @@ impl ChainDistances {
 }
 
 impl PatientAnatomy {
+    /// Builds the chain and its boxes. Ossicle boxes come from a 0.3 mm lattice: every point
+    /// of a bone lies within 0.26 mm of a lattice node whose distance is then below
+    /// 0.26 × 1.35 < 0.4 mm, so the nodes under 0.4 mm, grown by a lattice step, hold the bone.
+    pub fn new(anatomy: Anatomy, detail: ShapeDetail) -> PatientAnatomy {
+        let spec = anatomy.spec();
+        let mut joint_box = Aabb::empty();
+        for d in [&spec.joints.incudomalleolar, &spec.joints.incudostapedial] {
+            let r = d.semi_axes[0].max(d.semi_axes[1]).max(0.5 * d.thickness);
+            joint_box.add(&Vector3::from(d.center), r);
+        }
+        let band_boxes = BANDS
+            .iter()
+            .filter_map(|r| anatomy.band(*r).map(|t| (*r, t)))
+            .map(|(r, t)| {
+                let mut b = Aabb::empty();
+                for (p, radius) in t.points.iter().zip(&t.radii) {
+                    b.add(&p.coords, *radius);
+                }
+                (r, b)
+            })
+            .collect();
+        let mut chain = PatientAnatomy {
+            anatomy,
+            detail,
+            bone_boxes: [Aabb::empty(); 3],
+            joint_box,
+            band_boxes,
+        };
+        let (lo, hi) = chain.anatomy.bounds();
+        let step = 0.3;
+        let n = |c: usize| ((hi[c] - lo[c]) / step).ceil() as usize + 1;
+        let mut boxes = [Aabb::empty(); 3];
+        for k in 0..n(2) {
+            for j in 0..n(1) {
+                for i in 0..n(0) {
+                    let p = lo + Vector3::new(i as f64, j as f64, k as f64) * step;
+                    for (b, o) in boxes.iter_mut().zip(Ossicle::ALL) {
+                        if chain.bone_distance(o, &p) < 0.4 {
+                            b.add(&p.coords, step);
+                        }
+                    }
+                }
+            }
+        }
+        chain.bone_boxes = boxes;
+        chain
+    }
+
     /// The atlas anatomy itself (no shape detail).
     pub fn plain(anatomy: Anatomy) -> PatientAnatomy {
-        PatientAnatomy {
-            anatomy,
-            detail: ShapeDetail::default(),
-        }
+        PatientAnatomy::new(anatomy, ShapeDetail::default())
+    }
+
+    /// The anatomy after the ossicle motions.
+    pub fn anatomy(&self) -> &Anatomy {
+        &self.anatomy
+    }
+
+    /// The shape detail.
+    pub fn detail(&self) -> &ShapeDetail {
+        &self.detail
     }
 
     /// Detailed signed distance of one ossicle.
@@ -107,27 +194,34 @@ impl PatientAnatomy {
         self.anatomy.bone_distance(ossicle.bone(), p) - self.detail.offset(ossicle, p)
     }
 
-    /// Every distance of the chain at `p`. More than `far_mm` outside the chain's bounding box
-    /// (which holds every bone, joint and band), the distance to the box stands for all of
-    /// them: a lower bound, which keeps every decision made from them as long as no decision
-    /// compares them with a distance beyond `far_mm`, and only shrinks the clearance.
+    /// Every distance of the chain at `p`. For a structure more than `far_mm` from its box,
+    /// the distance to the box stands for its own: a lower bound, which keeps every decision
+    /// made from them as long as no decision compares them with a distance beyond `far_mm`,
+    /// and only shrinks the clearance.
     pub fn distances(&self, p: &Point3<f64>, far_mm: f64) -> ChainDistances {
-        let (lo, hi) = self.anatomy.bounds();
-        let outside = Vector3::from_fn(|c, _| (lo[c] - p[c]).max(p[c] - hi[c]).max(0.0)).norm();
-        if outside > far_mm {
-            return ChainDistances {
-                bones: [outside; 3],
-                joints: outside,
-                bands: outside,
-            };
-        }
-        let bands = BANDS
+        // a structure farther than far_mm from its box is represented by the box distance
+        let near = |b: &Aabb, exact: &dyn Fn() -> f64| {
+            let d = b.distance(p);
+            if d > far_mm { d } else { exact() }
+        };
+        let bands = self
+            .band_boxes
             .iter()
-            .filter_map(|r| self.anatomy.band(*r))
-            .fold(f64::INFINITY, |m, t| m.min(t.distance(p)));
+            .map(|(r, b)| {
+                near(b, &|| {
+                    self.anatomy
+                        .band(*r)
+                        .map_or(f64::INFINITY, |t| t.distance(p))
+                })
+            })
+            .fold(f64::INFINITY, f64::min);
+        let mut bones = [0.0; 3];
+        for (k, o) in Ossicle::ALL.iter().enumerate() {
+            bones[k] = near(&self.bone_boxes[k], &|| self.bone_distance(*o, p));
+        }
         ChainDistances {
-            bones: Ossicle::ALL.map(|o| self.bone_distance(o, p)),
-            joints: self.joints_distance(p),
+            bones,
+            joints: near(&self.joint_box, &|| self.joints_distance(p)),
             bands,
         }
     }

@@ -107,7 +107,7 @@ mod tests {
         let scene = EarScene::new(&patient, TissueLevels::default(), CavityParams::default());
         let field = PatientField { scene, warp: &warp };
         // a 6 mm cube around the umbo: manubrium, eardrum sheet, canal, cavity
-        let umbo = warp.to_patient(&patient.anatomy.landmarks().umbo);
+        let umbo = warp.to_patient(&patient.anatomy().landmarks().umbo);
         let grid = Grid {
             dims: [20, 20, 20],
             spacing: [0.3; 3],

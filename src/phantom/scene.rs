@@ -155,7 +155,7 @@ impl<'a> EarScene<'a> {
     }
 
     fn anatomy(&self) -> &Anatomy {
-        &self.patient.anatomy
+        self.patient.anatomy()
     }
 
     /// Where `p` lies relative to the eardrum cone.

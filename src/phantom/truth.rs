@@ -24,7 +24,7 @@ const DRUM_SECTORS: usize = 120;
 
 /// The closed, outward surfaces of the three ossicles (atlas frame), in `Ossicle::ALL` order.
 pub fn ossicle_surfaces(patient: &PatientAnatomy) -> [TriMesh; 3] {
-    let (lo, hi) = patient.anatomy.bounds();
+    let (lo, hi) = patient.anatomy().bounds();
     // a coarse pass finds the box of the bones (a lattice cell within reach of a surface)
     let coarse = 0.3;
     let n = |c: usize| ((hi[c] - lo[c]) / coarse).ceil() as usize + 1;
