@@ -74,8 +74,11 @@ mod tests {
     use crate::atlas::Anatomy;
     use crate::phantom::imaging::{ImagingParams, render};
     use crate::phantom::scene::{CavityParams, TissueLevels};
+    use crate::phantom::variability::ShapeDetail;
     use crate::phantom::warp::{Deformation, WaveMode};
     use nalgebra::{Matrix3, Rotation3};
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
 
     /// The same field, but never claiming a clearance: every voxel is supersampled.
     struct Everywhere<'a>(&'a PatientField<'a>);
@@ -91,7 +94,10 @@ mod tests {
 
     #[test]
     fn adaptive_supersampling_equals_supersampling_every_voxel() {
-        let patient = PatientAnatomy::plain(Anatomy::default_right().unwrap());
+        // a left ear with surface detail
+        let anatomy = Anatomy::default_right().unwrap().mirrored().unwrap();
+        let detail = ShapeDetail::draw(&anatomy, &mut ChaCha8Rng::seed_from_u64(4));
+        let patient = PatientAnatomy::new(anatomy, detail);
         let warp = PatientWarp {
             scale: 0.95,
             deformation: Deformation {
