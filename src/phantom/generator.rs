@@ -274,7 +274,7 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
     let scene = EarScene::new(&patient, levels.clone(), cavity.clone());
     let field = PatientField { scene, warp: &warp };
     let image = render(&field, &grid, &imaging);
-    let labels = label_map(&patient, &field.scene, &warp, &grid);
+    let labels = label_map(&patient, &warp, &grid);
 
     let exact = Landmarks::from_points(exact_atlas.points().map(|p| warp.to_patient(&p)));
     let picked = Landmarks::from_points(exact.points().map(|p| pick(&mut rng, &p)));

@@ -3,6 +3,7 @@
 //! model, and written as case folders with their ground truth. See docs/phantom.md.
 
 pub mod case_writer;
+pub mod drum;
 pub mod generator;
 pub mod imaging;
 pub mod patient;

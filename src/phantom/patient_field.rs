@@ -4,6 +4,7 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
+use super::drum::drum_position;
 use super::imaging::{FieldSample, Grid, TissueField};
 use super::patient::{ChainTissue, PatientAnatomy};
 use super::scene::EarScene;
@@ -32,12 +33,8 @@ impl TissueField for PatientField<'_> {
 /// ossicle where the
 /// voxel centre lies in it; the eardrum where the membrane passes within half a voxel of the
 /// centre (a one-voxel sheet, since the real one is far thinner than a voxel).
-pub fn label_map(
-    patient: &PatientAnatomy,
-    scene: &EarScene,
-    warp: &PatientWarp,
-    grid: &Grid,
-) -> Vec<u8> {
+pub fn label_map(patient: &PatientAnatomy, warp: &PatientWarp, grid: &Grid) -> Vec<u8> {
+    let eardrum = patient.anatomy().eardrum();
     let [nx, ny, nz] = grid.dims;
     let half_voxel = 0.5 * grid.spacing.iter().copied().fold(0.0, f64::max) / warp.scale;
     let mut labels = vec![0u8; nx * ny * nz];
@@ -58,7 +55,7 @@ pub fn label_map(
                         Some(ChainTissue::Soft) => continue,
                         None => {}
                     }
-                    let drum = scene.drum_position(&a);
+                    let drum = drum_position(eardrum, &a);
                     if drum.s <= 1.0 && drum.height.abs() <= half_voxel {
                         out[i + nx * j] = DEFAULT_LABELS[3].0 as u8;
                     }

@@ -18,6 +18,7 @@
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
+use super::drum::{DrumSlopes, drum_position, sheet_fraction};
 use super::imaging::{FieldSample, TissueField};
 use super::patient::{ChainTissue, PatientAnatomy};
 use super::variability::DETAILED_LIPSCHITZ;
@@ -84,66 +85,17 @@ pub struct EarScene<'a> {
     patient: &'a PatientAnatomy,
     levels: TissueLevels,
     cavity: CavityParams,
-    /// Lipschitz bounds (measured at construction) of the drum height and, near the annulus,
-    /// of the radial fraction s.
-    height_slope: f64,
-    s_slope: f64,
-}
-
-/// Where a point lies relative to the eardrum cone.
-#[derive(Debug, Clone, Copy)]
-pub struct DrumPosition {
-    /// Signed distance along the medial normal from the membrane (+ medial).
-    pub height: f64,
-    /// Radial fraction from the umbo (0) to the annulus (1); > 1 outside the annulus.
-    pub s: f64,
-    pub theta: f64,
+    slopes: DrumSlopes,
 }
 
 impl<'a> EarScene<'a> {
     pub fn new(patient: &'a PatientAnatomy, levels: TissueLevels, cavity: CavityParams) -> Self {
-        let mut scene = EarScene {
+        EarScene {
             patient,
             levels,
             cavity,
-            height_slope: 1.0,
-            s_slope: 1.0,
-        };
-        (scene.height_slope, scene.s_slope) = scene.drum_slopes();
-        scene
-    }
-
-    /// The largest gradients of the drum height (over the membrane and 1 mm either side)
-    /// and of s (near the annulus), by central differences on a dense (s, θ) sampling, with
-    /// a 20 % margin: the cone's height along the annulus normal is steeper than a distance.
-    fn drum_slopes(&self) -> (f64, f64) {
-        let d = self.anatomy().eardrum();
-        let h = 1e-4;
-        let grad = |p: &Point3<f64>, f: &dyn Fn(&DrumPosition) -> f64| {
-            nalgebra::Vector3::from_fn(|c, _| {
-                let mut e = nalgebra::Vector3::zeros();
-                e[c] = h;
-                (f(&self.drum_position(&(p + e))) - f(&self.drum_position(&(p - e)))) / (2.0 * h)
-            })
-            .norm()
-        };
-        let (mut height, mut s_max) = (0.0f64, 0.0f64);
-        for i in 1..=24 {
-            let s = 0.05 * i as f64; // 0.05 .. 1.2
-            for k in 0..96 {
-                let theta = std::f64::consts::TAU * k as f64 / 96.0;
-                for off in [-1.0, -0.3, 0.0, 0.3, 1.0] {
-                    let p = d.point(s, theta) + d.medial_normal * off;
-                    if s >= 0.2 {
-                        height = height.max(grad(&p, &|q| q.height));
-                    }
-                    if s >= 0.8 {
-                        s_max = s_max.max(grad(&p, &|q| q.s));
-                    }
-                }
-            }
+            slopes: DrumSlopes::measure(patient.anatomy().eardrum()),
         }
-        (1.2 * height.max(1.0), 1.2 * s_max)
     }
 
     pub fn levels(&self) -> &TissueLevels {
@@ -156,42 +108,6 @@ impl<'a> EarScene<'a> {
 
     fn anatomy(&self) -> &Anatomy {
         self.patient.anatomy()
-    }
-
-    /// Where `p` lies relative to the eardrum cone.
-    pub fn drum_position(&self, p: &Point3<f64>) -> DrumPosition {
-        let d = self.anatomy().eardrum();
-        let to_uv = |q: &Point3<f64>| {
-            let r = q - d.annulus_center;
-            (
-                r.dot(&d.superior) / d.semi_axis_superior,
-                r.dot(&d.anterior) / d.semi_axis_anterior,
-            )
-        };
-        let (au, av) = to_uv(&d.apex);
-        let (pu, pv) = to_uv(p);
-        let (du, dv) = (pu - au, pv - av);
-        let len = (du * du + dv * dv).sqrt();
-        if len < 1e-12 {
-            return DrumPosition {
-                height: (p - d.apex).dot(&d.medial_normal),
-                s: 0.0,
-                theta: 0.0,
-            };
-        }
-        let (ux, uy) = (du / len, dv / len);
-        // the generator through p meets the unit circle at apex_uv + t (ux, uy)
-        let b = au * ux + av * uy;
-        let c = au * au + av * av - 1.0;
-        let t = -b + (b * b - c).max(0.0).sqrt();
-        let theta = (av + t * uy).atan2(au + t * ux);
-        let s = len / t.max(1e-12);
-        let on_membrane = d.point(s, theta);
-        DrumPosition {
-            height: (p - on_membrane).dot(&d.medial_normal),
-            s,
-            theta,
-        }
     }
 
     /// Distance from the ossicles to the cavity wall at `p`: a smooth variation between the
@@ -209,22 +125,6 @@ impl<'a> EarScene<'a> {
     fn wall_slope(&self) -> f64 {
         (self.cavity.wall_max_mm - self.cavity.wall_min_mm) * 0.5 * 0.97
     }
-}
-
-/// The eardrum sheet is box-filtered over a sample's footprint along its normal: the covered
-/// fraction of `[h - f/2, h + f/2]` by `[-t/2, t/2]`, so a sheet thinner than the sample
-/// spacing still shows as partial volume instead of aliasing.
-fn sheet_fraction(height: f64, thickness: f64, footprint: f64) -> f64 {
-    if footprint <= 0.0 {
-        return if height.abs() <= 0.5 * thickness {
-            1.0
-        } else {
-            0.0
-        };
-    }
-    let lo = (height - 0.5 * footprint).max(-0.5 * thickness);
-    let hi = (height + 0.5 * footprint).min(0.5 * thickness);
-    ((hi - lo) / footprint).clamp(0.0, 1.0)
 }
 
 impl EarScene<'_> {
@@ -246,14 +146,14 @@ impl EarScene<'_> {
             None => {}
         }
         let d = self.anatomy().eardrum();
-        let drum = self.drum_position(p);
-        clearance = clearance.min((drum.s - 1.0).abs() / self.s_slope);
+        let drum = drum_position(d, p);
+        clearance = clearance.min((drum.s - 1.0).abs() / self.slopes.s);
         if drum.s <= 1.0 {
             let thickness = membrane_thickness_mm(d.region(drum.s, drum.theta));
             // the sheet's faces, of either part's thickness (the parts meet along a line)
             for t in [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida] {
                 let face = (drum.height.abs() - 0.5 * membrane_thickness_mm(t)).abs();
-                clearance = clearance.min(face / self.height_slope);
+                clearance = clearance.min(face / self.slopes.height);
             }
             let sheet = sheet_fraction(drum.height, thickness, footprint_mm);
             if sheet > 0.0 || drum.height < 0.0 {
@@ -282,7 +182,7 @@ impl EarScene<'_> {
         }
         if drum.s <= 1.0 {
             clearance = clearance
-                .min((drum.height - self.cavity.depth_behind_drum_mm).abs() / self.height_slope);
+                .min((drum.height - self.cavity.depth_behind_drum_mm).abs() / self.slopes.height);
             if drum.height < self.cavity.depth_behind_drum_mm {
                 return done(l.air, clearance); // the tympanic cavity behind the membrane
             }
@@ -342,24 +242,6 @@ mod tests {
     }
 
     #[test]
-    fn drum_position_is_zero_on_the_membrane_and_signed_off_it() {
-        let a = Anatomy::default_right().unwrap();
-        let p = PatientAnatomy::plain(a.clone());
-        let s = scene(&p);
-        let d = a.eardrum();
-        for (sf, th) in [(0.2, 0.3), (0.7, 2.5), (0.95, -1.2)] {
-            let p = d.point(sf, th);
-            let pos = s.drum_position(&p);
-            assert!(
-                pos.height.abs() < 1e-9 && (pos.s - sf).abs() < 1e-9,
-                "{sf} {th}"
-            );
-            let off = s.drum_position(&(p + d.medial_normal * 0.1));
-            assert!(off.height > 0.0);
-        }
-    }
-
-    #[test]
     fn clearance_is_a_radius_of_constant_tissue() {
         // around random points, points within the reported clearance have the same HU, up to
         // the reach the renderer relies on (a voxel's half-diagonal with margin, 0.33 mm at
@@ -401,20 +283,5 @@ mod tests {
             }
         }
         assert!(checked > 10_000);
-    }
-
-    #[test]
-    fn a_sheet_thinner_than_the_footprint_keeps_its_mass() {
-        // sliding a 0.074 mm sheet across footprints of 0.1 mm: the covered fraction
-        // integrates to the thickness
-        let (t, f) = (0.074, 0.1);
-        let n = 4000;
-        let dh = 1.0 / n as f64;
-        let total: f64 = (0..n)
-            .map(|k| sheet_fraction(-0.5 + (k as f64 + 0.5) * dh, t, f) * dh)
-            .sum();
-        assert!((total - t).abs() < 1e-6, "{total}");
-        assert_eq!(sheet_fraction(0.0, t, 0.0), 1.0);
-        assert_eq!(sheet_fraction(0.05, t, 0.0), 0.0);
     }
 }
