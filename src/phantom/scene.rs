@@ -1,5 +1,7 @@
 //! The noise-free tissue field of a synthetic temporal bone around the ossicular chain, in the
-//! anatomy's frame: what a CBCT of the middle ear shows, as Hounsfield units at a point.
+//! anatomy's frame: what a CBCT of the middle ear shows, as Hounsfield units at a point, with
+//! a clearance (a radius within which the tissue cannot change) for the adaptive renderer.
+//! The chain is a `PatientAnatomy` (the atlas, or a patient with its shape detail).
 //!
 //! - ossicles: dense bone; joints, ligaments and tendons: soft tissue;
 //! - the eardrum: a soft-tissue sheet of its real thickness (pars tensa / flaccida), far
