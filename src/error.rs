@@ -31,6 +31,8 @@ pub enum Error {
     Anatomy(#[from] crate::atlas::AnatomyError),
     #[error(transparent)]
     Atlas(#[from] crate::atlas::AtlasError),
+    #[error(transparent)]
+    Phantom(#[from] crate::phantom::PhantomError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -53,6 +55,10 @@ impl Error {
             | Error::Anatomy(_)
             | Error::Atlas(_)
             | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Phantom(e) => match e {
+                crate::phantom::PhantomError::Anatomy { .. } => ExitStatus::CaseFailed,
+                _ => ExitStatus::BadInput,
+            },
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }
     }

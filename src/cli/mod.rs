@@ -5,6 +5,7 @@ pub mod atlas;
 mod inspect;
 mod landmarks;
 mod run;
+mod phantom;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,6 +36,7 @@ pub enum Command {
     Landmarks(landmarks::LandmarksArgs),
     Run(run::RunArgs),
     Atlas(atlas::AtlasArgs),
+    Phantom(phantom::PhantomArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script.
@@ -59,12 +61,14 @@ pub fn main() -> ExitCode {
         Command::Landmarks(a) => a.json,
         Command::Atlas(a) => a.json,
         Command::Run(a) => a.json,
+        Command::Phantom(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
         Command::Atlas(a) => atlas::run(a),
         Command::Run(a) => run::run(a, cli.config.as_deref()),
+        Command::Phantom(a) => phantom::run(a),
     };
     match result {
         Ok(report) => {

@@ -1,5 +1,17 @@
-//! Synthetic CBCT cases with known truth: the imaging model (and, with the atlas, the patient
-//! anatomy and the case writer).
+//! Synthetic CBCT cases with known truth: the atlas anatomy varied per patient (ossicle
+//! motions, shape detail, scale, smooth deformation, pose, side), imaged by a cone-beam CT
+//! model, and written as case folders with their ground truth. See docs/phantom.md.
 
+pub mod case_writer;
+pub mod drum;
+pub mod generator;
 pub mod imaging;
+pub mod patient;
+pub mod patient_field;
 pub mod scene;
+pub mod truth;
+pub mod variability;
+pub mod warp;
+
+pub use case_writer::write_case;
+pub use generator::{PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case};

@@ -1,5 +1,7 @@
 //! The noise-free tissue field of a synthetic temporal bone around the ossicular chain, in the
-//! anatomy's frame: what a CBCT of the middle ear shows, as Hounsfield units at a point.
+//! anatomy's frame: what a CBCT of the middle ear shows, as Hounsfield units at a point, with
+//! a clearance (a radius within which the tissue cannot change) for the adaptive renderer.
+//! The chain is a `PatientAnatomy` (the atlas, or a patient with its shape detail).
 //!
 //! - ossicles: dense bone; joints, ligaments and tendons: soft tissue;
 //! - the eardrum: a soft-tissue sheet of its real thickness (pars tensa / flaccida), far
@@ -18,10 +20,12 @@
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
-use super::imaging::TissueField;
+use super::drum::{DrumSlopes, drum_position, sheet_fraction};
+use super::imaging::{FieldSample, TissueField};
+use super::patient::{ChainTissue, PatientAnatomy};
+use super::variability::DETAILED_LIPSCHITZ;
 use crate::atlas::materials::membrane_thickness_mm;
-use crate::atlas::{Anatomy, Bone, Region};
-use crate::mesh::LabelledDomain;
+use crate::atlas::{Anatomy, MembraneRegion};
 
 /// The grey levels of each tissue [HU].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -80,54 +84,32 @@ impl Default for CavityParams {
 
 /// The tissue field of one ear, in the anatomy's frame (mm).
 pub struct EarScene<'a> {
-    pub anatomy: &'a Anatomy,
-    pub levels: TissueLevels,
-    pub cavity: CavityParams,
+    patient: &'a PatientAnatomy,
+    levels: TissueLevels,
+    cavity: CavityParams,
+    slopes: DrumSlopes,
 }
 
-/// Where a point lies relative to the eardrum cone.
-struct DrumPosition {
-    /// Signed distance along the medial normal from the membrane (+ medial).
-    height: f64,
-    /// Radial fraction from the umbo (0) to the annulus (1); > 1 outside the annulus.
-    s: f64,
-    theta: f64,
-}
+impl<'a> EarScene<'a> {
+    pub fn new(patient: &'a PatientAnatomy, levels: TissueLevels, cavity: CavityParams) -> Self {
+        EarScene {
+            patient,
+            levels,
+            cavity,
+            slopes: DrumSlopes::measure(patient.anatomy().eardrum()),
+        }
+    }
 
-impl EarScene<'_> {
-    fn drum_position(&self, p: &Point3<f64>) -> DrumPosition {
-        let d = self.anatomy.eardrum();
-        let to_uv = |q: &Point3<f64>| {
-            let r = q - d.annulus_center;
-            (
-                r.dot(&d.superior) / d.semi_axis_superior,
-                r.dot(&d.anterior) / d.semi_axis_anterior,
-            )
-        };
-        let (au, av) = to_uv(&d.apex);
-        let (pu, pv) = to_uv(p);
-        let (du, dv) = (pu - au, pv - av);
-        let len = (du * du + dv * dv).sqrt();
-        if len < 1e-12 {
-            return DrumPosition {
-                height: (p - d.apex).dot(&d.medial_normal),
-                s: 0.0,
-                theta: 0.0,
-            };
-        }
-        let (ux, uy) = (du / len, dv / len);
-        // the generator through p meets the unit circle at apex_uv + t (ux, uy)
-        let b = au * ux + av * uy;
-        let c = au * au + av * av - 1.0;
-        let t = -b + (b * b - c).max(0.0).sqrt();
-        let theta = (av + t * uy).atan2(au + t * ux);
-        let s = len / t.max(1e-12);
-        let on_membrane = d.point(s, theta);
-        DrumPosition {
-            height: (p - on_membrane).dot(&d.medial_normal),
-            s,
-            theta,
-        }
+    pub fn levels(&self) -> &TissueLevels {
+        &self.levels
+    }
+
+    pub fn cavity(&self) -> &CavityParams {
+        &self.cavity
+    }
+
+    fn anatomy(&self) -> &Anatomy {
+        self.patient.anatomy()
     }
 
     /// Distance from the ossicles to the cavity wall at `p`: a smooth variation between the
@@ -140,109 +122,168 @@ impl EarScene<'_> {
             / 2.0;
         c.wall_min_mm + (c.wall_max_mm - c.wall_min_mm) * 0.5 * (1.0 + wave)
     }
+
+    /// Lipschitz bound of `wall_distance`: |∇wave| ≤ (|(0.9, 0.7)| + 0.8) / 2 < 0.97.
+    fn wall_slope(&self) -> f64 {
+        (self.cavity.wall_max_mm - self.cavity.wall_min_mm) * 0.5 * 0.97
+    }
 }
 
-impl TissueField for EarScene<'_> {
-    fn hu(&self, p: &Point3<f64>) -> f32 {
+impl EarScene<'_> {
+    /// HU at `p` (anatomy frame) and a radius within which the tissue cannot change (the
+    /// smallest distance to any interface the decision consulted, over its Lipschitz bound).
+    /// `footprint_mm` is the size the sample stands for (the eardrum sheet is averaged over it).
+    pub fn sample(&self, p: &Point3<f64>, footprint_mm: f64) -> FieldSample {
         let l = &self.levels;
-        let label = self.anatomy.label(p);
-        if let Some(region) = Region::from_label(label) {
-            return if region.bone().is_some() {
-                l.ossicle
-            } else {
-                l.soft_tissue
-            };
+        // the wall test compares the chain distance with at most wall_max_mm
+        let chain = self.patient.distances(p, self.cavity.wall_max_mm + 0.5);
+        let mut clearance = chain.clearance();
+        let done = |hu: f32, clearance: f64| FieldSample {
+            hu,
+            clearance_mm: clearance.max(0.0),
+        };
+        match chain.tissue() {
+            Some(ChainTissue::Bone(_)) => return done(l.ossicle, clearance),
+            Some(ChainTissue::Soft) => return done(l.soft_tissue, clearance),
+            None => {}
         }
-        let drum = self.drum_position(p);
-        let d = self.anatomy.eardrum();
+        let d = self.anatomy().eardrum();
+        let drum = drum_position(d, p);
+        clearance = clearance.min((drum.s - 1.0).abs() / self.slopes.s);
         if drum.s <= 1.0 {
             let thickness = membrane_thickness_mm(d.region(drum.s, drum.theta));
-            if drum.height.abs() <= 0.5 * thickness {
-                return l.soft_tissue;
+            // the sheet's faces, of either part's thickness (the parts meet along a line)
+            for t in [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida] {
+                let face = (drum.height.abs() - 0.5 * membrane_thickness_mm(t)).abs();
+                clearance = clearance.min(face / self.slopes.height);
             }
-            if drum.height < 0.0 {
-                return l.air; // the external ear canal
+            let sheet = sheet_fraction(drum.height, thickness, footprint_mm);
+            if sheet > 0.0 || drum.height < 0.0 {
+                // both sides of the sheet are air (canal, cavity): blend the sheet over it
+                let hu = sheet * l.soft_tissue as f64 + (1.0 - sheet) * l.air as f64;
+                return done(hu as f32, clearance);
             }
         }
         // behind the oval window: the vestibule, then the otic capsule
-        let fp = self.anatomy.footplate();
+        let fp = self.anatomy().footplate();
         let depth = (p - fp.center).dot(&fp.frame.e3);
-        if depth > 0.5 * fp.thickness && (p - fp.center).norm() < self.cavity.capsule_radius_mm {
+        let from_fp = (p - fp.center).norm();
+        clearance = clearance
+            .min((depth - 0.5 * fp.thickness).abs())
+            .min((from_fp - self.cavity.capsule_radius_mm).abs());
+        if depth > 0.5 * fp.thickness && from_fp < self.cavity.capsule_radius_mm {
             let centre = fp.center + fp.frame.e3 * self.cavity.vestibule_radius_mm;
-            return if (p - centre).norm() < self.cavity.vestibule_radius_mm {
+            let r = (p - centre).norm();
+            clearance = clearance.min((r - self.cavity.vestibule_radius_mm).abs());
+            let hu = if r < self.cavity.vestibule_radius_mm {
                 l.fluid
             } else {
                 l.otic_capsule
             };
+            return done(hu, clearance);
         }
-        if drum.s <= 1.0 && drum.height < self.cavity.depth_behind_drum_mm {
-            return l.air; // the tympanic cavity behind the membrane
+        if drum.s <= 1.0 {
+            clearance = clearance
+                .min((drum.height - self.cavity.depth_behind_drum_mm).abs() / self.slopes.height);
+            if drum.height < self.cavity.depth_behind_drum_mm {
+                return done(l.air, clearance); // the tympanic cavity behind the membrane
+            }
         }
-        let to_chain = [Bone::Malleus, Bone::Incus, Bone::Stapes]
-            .iter()
-            .map(|b| self.anatomy.bone_distance(*b, p))
-            .fold(f64::INFINITY, f64::min);
-        if to_chain < self.wall_distance(p) {
-            l.air
-        } else {
-            l.temporal_bone
-        }
+        let wall = chain.to_bones() - self.wall_distance(p);
+        clearance = clearance.min(wall.abs() / (DETAILED_LIPSCHITZ + self.wall_slope()));
+        let hu = if wall < 0.0 { l.air } else { l.temporal_bone };
+        done(hu, clearance)
+    }
+}
+
+impl TissueField for EarScene<'_> {
+    fn sample(&self, p: &Point3<f64>, footprint_mm: f64) -> FieldSample {
+        EarScene::sample(self, p, footprint_mm)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::LabelledDomain;
 
-    fn scene(anatomy: &Anatomy) -> EarScene<'_> {
-        EarScene {
-            anatomy,
-            levels: TissueLevels::default(),
-            cavity: CavityParams::default(),
-        }
+    fn scene(patient: &PatientAnatomy) -> EarScene<'_> {
+        EarScene::new(patient, TissueLevels::default(), CavityParams::default())
+    }
+
+    fn hu(s: &EarScene, p: &Point3<f64>) -> f32 {
+        s.sample(p, 0.0).hu
     }
 
     #[test]
     fn tissues_where_the_anatomy_puts_them() {
         let a = Anatomy::default_right().unwrap();
-        let s = scene(&a);
+        let p = PatientAnatomy::plain(a.clone());
+        let s = scene(&p);
         let l = TissueLevels::default();
         let lm = a.landmarks();
         let n = a.eardrum().medial_normal;
         let drum = a.eardrum();
         // the umbo is in the manubrium: bone
-        assert_eq!(s.hu(&lm.umbo), l.ossicle);
+        assert_eq!(hu(&s, &lm.umbo), l.ossicle);
         // a point on the pars tensa half-way to the annulus, off the manubrium: the sheet
         let on = drum.point(0.6, std::f64::consts::PI);
-        assert_eq!(s.hu(&on), l.soft_tissue);
+        assert_eq!(hu(&s, &on), l.soft_tissue);
         // just lateral of it: the ear canal; just medial: the tympanic cavity
-        assert_eq!(s.hu(&(on - n * 0.2)), l.air);
-        assert_eq!(s.hu(&(on + n * 0.3)), l.air);
+        assert_eq!(hu(&s, &(on - n * 0.2)), l.air);
+        assert_eq!(hu(&s, &(on + n * 0.3)), l.air);
         // behind the footplate: vestibule fluid, then capsule bone further out
         let fp = a.footplate();
-        assert_eq!(s.hu(&(fp.center + fp.frame.e3 * 1.0)), l.fluid);
-        assert_eq!(s.hu(&(fp.center + fp.frame.e3 * 3.2)), l.otic_capsule);
+        assert_eq!(hu(&s, &(fp.center + fp.frame.e3 * 1.0)), l.fluid);
+        assert_eq!(hu(&s, &(fp.center + fp.frame.e3 * 3.2)), l.otic_capsule);
         // far from everything (medial, beyond any wall): temporal bone
         assert_eq!(
-            s.hu(&(lm.incudomalleolar + n * 6.0 + drum.superior * 4.0)),
+            hu(&s, &(lm.incudomalleolar + n * 6.0 + drum.superior * 4.0)),
             l.temporal_bone
         );
     }
 
     #[test]
-    fn drum_position_is_zero_on_the_membrane_and_signed_off_it() {
+    fn clearance_is_a_radius_of_constant_tissue() {
+        // around random points, points within the reported clearance have the same HU, up to
+        // the reach the renderer relies on (a voxel's half-diagonal with margin, 0.33 mm at
+        // 0.3 mm voxels; beyond that the first-order ellipse distances may overestimate)
+        const REACH: f64 = 0.5;
+        use rand::{Rng, SeedableRng};
         let a = Anatomy::default_right().unwrap();
-        let s = scene(&a);
+        let p = PatientAnatomy::plain(a.clone());
+        let s = scene(&p);
+        let (lo, hi) = a.bounds();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut checked = 0;
         let d = a.eardrum();
-        for (sf, th) in [(0.2, 0.3), (0.7, 2.5), (0.95, -1.2)] {
-            let p = d.point(sf, th);
-            let pos = s.drum_position(&p);
-            assert!(
-                pos.height.abs() < 1e-9 && (pos.s - sf).abs() < 1e-9,
-                "{sf} {th}"
-            );
-            let off = s.drum_position(&(p + d.medial_normal * 0.1));
-            assert!(off.height > 0.0);
+        for n in 0..6000 {
+            // two thirds anywhere around the chain, one third within 0.5 mm of the membrane
+            let q = if n % 3 == 0 {
+                d.point(rng.random::<f64>() * 1.1, rng.random::<f64>() * 7.0)
+                    + d.medial_normal * (rng.random::<f64>() - 0.5)
+            } else {
+                Point3::from(nalgebra::Vector3::from_fn(|k, _| {
+                    lo[k] - 2.0 + rng.random::<f64>() * (hi[k] - lo[k] + 4.0)
+                }))
+            };
+            let at = s.sample(&q, 0.0);
+            if at.clearance_mm < 1e-3 {
+                continue;
+            }
+            for _ in 0..8 {
+                let dir = nalgebra::Vector3::from_fn(|_, _| rng.random::<f64>() - 0.5).normalize();
+                let r = at.clearance_mm.min(REACH) * rng.random::<f64>() * 0.999;
+                let there = q + dir * r;
+                assert_eq!(
+                    hu(&s, &there),
+                    at.hu,
+                    "{q:?} r {r} {:?}",
+                    p.distances(&there, f64::INFINITY)
+                );
+                checked += 1;
+            }
         }
+        assert!(checked > 10_000);
     }
 }
