@@ -1,11 +1,10 @@
 #!/usr/bin/env bash
-# The main job on the embedded default, from a fresh clone (with Rust installed).
-# Until registration lands this runs the furthest stage that exists: it writes a synthetic
-# CT series with the project's own DICOM writer and ingests it with `otoatlas inspect`.
+# The main job on the embedded default, from a fresh clone (with Rust installed): the embedded
+# atlas registered onto the first sample case (a synthetic CBCT with its manual segmentation),
+# writing the patient model, metrics and timings to out/demo/case-001.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib.sh
 ensure_build_deps
-cargo build --release --locked --bin otoatlas --example synthetic_series
-./target/release/examples/synthetic_series out/demo/dicom 256 256 120 0.2
-./target/release/otoatlas inspect out/demo/dicom
+cargo build --release --locked --bin otoatlas
+./target/release/otoatlas run sample_cases/case-001 --out out/demo/case-001
