@@ -11,6 +11,7 @@ pub mod build;
 pub mod eardrum;
 pub mod export;
 pub mod format;
+pub mod import;
 pub mod materials;
 pub mod membrane;
 pub mod model;
@@ -18,6 +19,7 @@ pub mod region;
 pub mod sdf;
 pub mod spec;
 pub mod summary;
+pub mod surfaces;
 pub mod volume;
 
 pub use crate::ear::Landmarks;
