@@ -117,11 +117,7 @@ fn check_mapping(m: &Mapping, path: &Path) -> Result<(), AtlasError> {
         Err(AtlasError::invalid(path, field, expected, found))
     };
     if m.regions.is_empty() {
-        return bad(
-            "region".into(),
-            "at least one [[region]]",
-            "none".into(),
-        );
+        return bad("region".into(), "at least one [[region]]", "none".into());
     }
     let mut names = BTreeSet::new();
     for (k, r) in m.regions.iter().enumerate() {

@@ -94,6 +94,8 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
         target_edge_mm: req.edge_mm,
         // the stapes crura are about 0.3 mm thick
         thin_regions: vec![3],
+        // the chain's boundary a manifold where two bones touch along an edge
+        manifold_groups: vec![vec![1, 2, 3]],
         ..MesherParams::default()
     };
     let mut tets = mesh_domain(&domain, &params)

@@ -10,6 +10,13 @@
 //! `r` has the majority there (or is a thin region), else carved to the dominant other label;
 //! a split `r` keeps its largest piece (thin regions fill the star instead); a split
 //! complement is filled with `r`. Sweeps in node order repeat until nothing changes.
+//!
+//! Groups (unions of regions, e.g. the regions of one bone, or all regions: the whole domain)
+//! get the same criterion with `inside` = "label in the group", so that two regions of a
+//! group touching along an edge or at a vertex only do not leave the union's boundary
+//! non-manifold. A group defect is always fixed by adding to the group (the ring, the star or
+//! the smaller complement pieces take the group's most frequent label there), never by
+//! carving it, so thin structures are not cut.
 
 use super::lattice::{Lattice, NodeTets};
 
@@ -23,6 +30,8 @@ pub struct RepairOutcome {
     pub sweeps: usize,
     /// (vertex, region) pairs still non-manifold after the last sweep (0 on success).
     pub defects_left: usize,
+    /// Outside tets of small enclosed voids given a label (`cavity`).
+    pub cavities_filled: usize,
 }
 
 enum Defect {
@@ -234,12 +243,81 @@ fn fix(
     }
 }
 
+/// The most frequent label of `group` among `tets` (ties: the smallest label).
+fn dominant_in(tets: impl Iterator<Item = u32>, labels: &[u16], group: &[u16]) -> Option<u16> {
+    let mut counts = [0u32; MAX_STAR];
+    for t in tets {
+        if let Some(k) = group.iter().position(|&g| g == labels[t as usize])
+            && k < MAX_STAR
+        {
+            counts[k] += 1;
+        }
+    }
+    (0..group.len().min(MAX_STAR))
+        .filter(|&k| counts[k] > 0)
+        .min_by_key(|&k| (std::cmp::Reverse(counts[k]), group[k]))
+        .map(|k| group[k])
+}
+
+/// Fixes one defect of a group's union at the star by adding to the group; returns the
+/// number of tets relabelled.
+fn fix_group(
+    star: &Star,
+    inside: &[bool],
+    defect: Defect,
+    group: &[u16],
+    labels: &mut [u16],
+) -> usize {
+    let n = star.tets.len();
+    let fill: Vec<usize> = match defect {
+        Defect::None => return 0,
+        Defect::Edge(w) => (0..n)
+            .filter(|&i| star.corners[i].contains(&w) && !inside[i])
+            .collect(),
+        Defect::SplitRegion => (0..n).filter(|&i| !inside[i]).collect(),
+        Defect::SplitComplement => {
+            let (mut uf, _, largest) = star.components(inside, false);
+            (0..n)
+                .filter(|&i| !inside[i] && uf.find(i) != largest)
+                .collect()
+        }
+    };
+    let from =
+        |positions: &[usize]| dominant_in(positions.iter().map(|&i| star.tets[i]), labels, group);
+    // the label the neighbourhood of the filled tets has most (else the star's)
+    let near: Vec<usize> = (0..n)
+        .filter(|&i| {
+            inside[i]
+                && fill.iter().any(|&f| {
+                    star.corners[f]
+                        .iter()
+                        .filter(|c| star.corners[i].contains(c))
+                        .count()
+                        == 3
+                })
+        })
+        .collect();
+    let Some(label) = from(&near).or_else(|| from(&(0..n).collect::<Vec<_>>())) else {
+        return 0;
+    };
+    let mut changed = 0;
+    for i in fill {
+        let t = star.tets[i] as usize;
+        if labels[t] != label {
+            labels[t] = label;
+            changed += 1;
+        }
+    }
+    changed
+}
+
 /// One sweep over all nodes; returns (tets relabelled, defects seen).
 fn sweep(
     lattice: &Lattice,
     adj: &NodeTets,
     labels: &mut [u16],
     thin: &[u16],
+    groups: &[Vec<u16>],
     apply: bool,
 ) -> (usize, usize) {
     let (mut changed, mut defects) = (0, 0);
@@ -285,27 +363,45 @@ fn sweep(
                 );
             }
         }
+        for group in groups {
+            for _ in 0..4 {
+                for (i, &t) in tets.iter().enumerate() {
+                    inside[i] = group.contains(&labels[t as usize]);
+                }
+                let defect = star.defect(&inside[..tets.len()]);
+                if matches!(defect, Defect::None) {
+                    break;
+                }
+                defects += 1;
+                if !apply {
+                    break;
+                }
+                changed += fix_group(&star, &inside[..tets.len()], defect, group, labels);
+            }
+        }
     }
     (changed, defects)
 }
 
-/// Relabels tets until every region is manifold at every vertex, or `max_sweeps` is reached.
+/// Relabels tets until every region and every group is manifold at every vertex, or
+/// `max_sweeps` is reached.
 pub fn make_manifold(
     lattice: &Lattice,
     adj: &NodeTets,
     labels: &mut [u16],
     thin: &[u16],
+    groups: &[Vec<u16>],
     max_sweeps: usize,
 ) -> RepairOutcome {
     let mut out = RepairOutcome::default();
     while out.sweeps < max_sweeps {
         out.sweeps += 1;
-        let (changed, _) = sweep(lattice, adj, labels, thin, true);
+        let (changed, _) = sweep(lattice, adj, labels, thin, groups, true);
         out.relabelled += changed;
         if changed == 0 {
             break;
         }
     }
-    out.defects_left = sweep(lattice, adj, labels, thin, false).1;
+    out.defects_left = sweep(lattice, adj, labels, thin, groups, false).1;
     out
 }
