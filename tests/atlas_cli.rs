@@ -541,8 +541,6 @@ fn the_sofa_chain_imports_into_a_usable_atlas() {
             path_str(&fixtures.join("sofa-ossicles.mapping.toml")),
             "--landmarks",
             path_str(&fixtures.join("sofa-ossicles.landmarks.json")),
-            "--side",
-            "right",
             "--name",
             "sofa",
             "--out",
@@ -553,6 +551,8 @@ fn the_sofa_chain_imports_into_a_usable_atlas() {
     let (code, info) = json_in(tmp.path(), &["atlas", "info", "--atlas", path_str(&out)]);
     assert_eq!(code, 0);
     assert_eq!(info["tetrahedra"], 5058);
+    // a left ear (docs/anatomy.md), as the landmark file states
+    assert_eq!(info["side"], "left");
     // the README's figures: malleus 11.48 mm³, incus + stapes 15.67 mm³, chain 27.15 mm³
     let (m, i, s) = (
         part_size(&info, "malleus"),
