@@ -1,10 +1,9 @@
 //! Importing an atlas from a tagged volume mesh (VTU or Gmsh MSH 2.2): every cell carries an
-//! integer tag, and a small mapping file (TOML, documented in docs/atlas-format.md) says what
-//! each tag is — a region with its part, material and (for triangles) membrane thickness, a
-//! tag to drop, a node set or a load surface. Tetrahedra are oriented positively, unused nodes
-//! are removed, and the three landmarks (any file `register::landmarks` reads) are tied to the
-//! mesh; a landmark off the mesh is rejected. Materials are named from the default atlas's
-//! Table 1 set (plus whole-bone averages, see [`material_library`]) or given explicitly.
+//! integer tag, and a mapping file ([`super::mapping`]) says what each tag is — a region with
+//! its part, material and (for triangles) membrane thickness, a tag to drop, a node set or a
+//! load surface. Tetrahedra are oriented positively, unused nodes are removed, and the three
+//! landmarks (any file `register::landmarks` reads) are tied to the mesh; a landmark off the
+//! mesh is rejected.
 //!
 //! What an imported atlas carries is what the mapping gives it: no node set or load surface
 //! is invented, and the damping is the default atlas's.
@@ -13,10 +12,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use nalgebra::{Point3, Vector3};
-use serde::Deserialize;
 
 use super::format::{AtlasError, LANDMARK_TOLERANCE_MM, default_atlas, validate};
-use super::model::{Atlas, MaterialInfo, MeshPoint, Part, RegionInfo, TiedLandmarks};
+use super::mapping::{Mapping, read_mapping, resolve_regions};
+use super::model::{Atlas, MeshPoint, TiedLandmarks};
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::io_util::sha256_hex;
 use crate::mesh::TetMesh;
@@ -24,245 +23,6 @@ use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
 use crate::mesh::io::{CellArray, VolumeMesh};
 use crate::register::landmarks::read_landmarks;
-
-/// The mapping file: what each cell tag of the mesh becomes.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Mapping {
-    /// The integer cell array holding the tags in a VTU (default `region`); Gmsh meshes use
-    /// each element's first (physical) tag.
-    #[serde(default)]
-    pub tag_array: Option<String>,
-    /// Regions, in label order (the first gets label 1).
-    #[serde(default, rename = "region")]
-    pub regions: Vec<RegionMap>,
-    /// Tags whose cells are left out of the atlas (their nodes may still make node sets).
-    #[serde(default)]
-    pub drop: Vec<u16>,
-    /// Node sets: the nodes of the cells with these tags that the atlas keeps.
-    #[serde(default, rename = "node_set")]
-    pub node_sets: Vec<SetMap>,
-    /// Load surfaces: the triangles with these tags, oriented as in the file.
-    #[serde(default, rename = "surface")]
-    pub surfaces: Vec<SetMap>,
-}
-
-/// One region: the cells of `tag` (whose centroid lies in every half-space of `within`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RegionMap {
-    pub tag: u16,
-    pub name: String,
-    pub part: Part,
-    pub material: MaterialRef,
-    /// Membrane thickness [mm]: makes this a region of triangles.
-    #[serde(default)]
-    pub thickness_mm: Option<f64>,
-    /// Splits a tag by position: every half-space must contain the cell's centroid. Regions
-    /// of the same tag are tried in file order; the first that contains a cell takes it.
-    #[serde(default)]
-    pub within: Vec<HalfSpace>,
-}
-
-/// A region's material: a name from [`material_library`] or the numbers themselves (SI).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(untagged)]
-pub enum MaterialRef {
-    Named(String),
-    Explicit(MaterialInfo),
-}
-
-/// The points `x` with `(x - point) · normal >= 0` [mm].
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HalfSpace {
-    pub point: [f64; 3],
-    pub normal: [f64; 3],
-}
-
-impl HalfSpace {
-    fn contains(&self, p: &Point3<f64>) -> bool {
-        (p - Point3::from(self.point)).dot(&Vector3::from(self.normal)) >= 0.0
-    }
-}
-
-/// A named node set or surface made of the cells of some tags.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SetMap {
-    pub name: String,
-    pub tags: Vec<u16>,
-}
-
-/// Reads and checks a mapping file.
-pub fn read_mapping(path: &Path) -> Result<Mapping, AtlasError> {
-    let text = std::fs::read_to_string(path).map_err(|source| AtlasError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mapping: Mapping = toml::from_str(&text).map_err(|e| {
-        AtlasError::invalid(
-            path,
-            "document",
-            "a mapping file (TOML, see docs/atlas-format.md)",
-            e.to_string(),
-        )
-    })?;
-    check_mapping(&mapping, path)?;
-    Ok(mapping)
-}
-
-fn check_mapping(m: &Mapping, path: &Path) -> Result<(), AtlasError> {
-    let bad = |field: String, expected: &str, found: String| {
-        Err(AtlasError::invalid(path, field, expected, found))
-    };
-    if m.regions.is_empty() {
-        return bad("region".into(), "at least one [[region]]", "none".into());
-    }
-    let mut names = BTreeSet::new();
-    for (k, r) in m.regions.iter().enumerate() {
-        if !names.insert(r.name.as_str()) {
-            return bad(
-                format!("region[{k}].name"),
-                "a name used once",
-                r.name.clone(),
-            );
-        }
-        if m.drop.contains(&r.tag) {
-            return bad(
-                format!("region[{k}].tag"),
-                "a tag not also listed in drop",
-                r.tag.to_string(),
-            );
-        }
-        if let Some(h) = r.thickness_mm.filter(|h| !(h.is_finite() && *h > 0.0)) {
-            return bad(
-                format!("region[{k}].thickness_mm"),
-                "a positive thickness",
-                h.to_string(),
-            );
-        }
-        if r.thickness_mm.is_some() != (r.part == Part::Eardrum) {
-            return bad(
-                format!("region[{k}].thickness_mm"),
-                "a thickness exactly for eardrum (membrane) regions",
-                format!("part {} with thickness {:?}", r.part.name(), r.thickness_mm),
-            );
-        }
-        for (j, h) in r.within.iter().enumerate() {
-            let finite = h.point.iter().chain(&h.normal).all(|v| v.is_finite());
-            if !finite || Vector3::from(h.normal).norm() == 0.0 {
-                return bad(
-                    format!("region[{k}].within[{j}]"),
-                    "a finite point and a non-zero normal",
-                    format!("{h:?}"),
-                );
-            }
-        }
-    }
-    for (what, sets) in [("node_set", &m.node_sets), ("surface", &m.surfaces)] {
-        let mut seen = BTreeSet::new();
-        for (k, s) in sets.iter().enumerate() {
-            if !seen.insert(s.name.as_str()) || s.tags.is_empty() {
-                return bad(
-                    format!("{what}[{k}]"),
-                    "a name used once and at least one tag",
-                    format!("{s:?}"),
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The materials a mapping (or a surface build) may name: the default atlas's, plus one
-/// whole-bone material for each ossicle without a region of that name (`malleus`, `incus`),
-/// with the bone's Young's modulus and the volume-weighted density of its default regions.
-pub fn material_library() -> Result<BTreeMap<String, MaterialInfo>, AtlasError> {
-    let default = default_atlas()?;
-    let mut lib = default.materials.clone();
-    for part in Part::BONES {
-        if lib.contains_key(part.name()) {
-            continue;
-        }
-        let (mut mass, mut volume, mut modulus) = (0.0, 0.0, 0.0f64);
-        let mut nu = 0.0;
-        for r in default.regions.iter().filter(|r| r.part == part) {
-            let Some(m) = default.materials.get(&r.material) else {
-                continue;
-            };
-            let v = default.mesh.tets.region_volume(r.label);
-            mass += m.density_kg_m3 * v;
-            volume += v;
-            modulus = modulus.max(m.youngs_modulus_pa);
-            nu = m.poisson_ratio;
-        }
-        if volume > 0.0 {
-            lib.insert(
-                part.name().to_string(),
-                MaterialInfo {
-                    density_kg_m3: mass / volume,
-                    youngs_modulus_pa: modulus,
-                    poisson_ratio: nu,
-                    source: format!(
-                        "whole {}: Kazmitcheff et al. 2013 Table 1 densities of its regions, \
-                         weighted by their volumes in the default atlas; E and Poisson's ratio \
-                         as the default atlas's bone",
-                        part.name()
-                    ),
-                },
-            );
-        }
-    }
-    Ok(lib)
-}
-
-/// Regions and materials of the mapping, with labels 1, 2, … in mapping order.
-fn resolve_regions(
-    m: &Mapping,
-    path: &Path,
-) -> Result<(Vec<RegionInfo>, BTreeMap<String, MaterialInfo>), AtlasError> {
-    let lib = material_library()?;
-    let mut regions = Vec::new();
-    let mut materials = BTreeMap::new();
-    for (k, r) in m.regions.iter().enumerate() {
-        let (key, info) = match &r.material {
-            MaterialRef::Named(name) => {
-                let info = lib.get(name).ok_or_else(|| {
-                    AtlasError::invalid(
-                        path,
-                        format!("region[{k}].material"),
-                        format!(
-                            "one of {} or {{ density_kg_m3, youngs_modulus_pa, poisson_ratio, \
-                             source }}",
-                            lib.keys().cloned().collect::<Vec<_>>().join(", ")
-                        ),
-                        format!("unknown material '{name}'"),
-                    )
-                })?;
-                (name.clone(), info.clone())
-            }
-            MaterialRef::Explicit(info) => (r.name.clone(), info.clone()),
-        };
-        if materials.get(&key).is_some_and(|m| *m != info) {
-            return Err(AtlasError::invalid(
-                path,
-                format!("region[{k}].material"),
-                "an explicit material for a region name that no named material uses",
-                key,
-            ));
-        }
-        materials.insert(key.clone(), info);
-        regions.push(RegionInfo {
-            label: k as u16 + 1,
-            name: r.name.clone(),
-            part: r.part,
-            material: key,
-            thickness_mm: r.thickness_mm,
-        });
-    }
-    Ok((regions, materials))
-}
 
 /// A mesh's cell tags (tetrahedra, then triangles).
 struct Tagged {
@@ -372,13 +132,6 @@ fn centroid(nodes: &[Point3<f64>], cell: &[u32]) -> Point3<f64> {
     Point3::from(s / cell.len() as f64)
 }
 
-/// The region (label) taking a cell of `tag` at `c`, if any.
-fn region_of(m: &Mapping, tag: u16, c: &Point3<f64>) -> Option<usize> {
-    m.regions
-        .iter()
-        .position(|r| r.tag == tag && r.within.iter().all(|h| h.contains(c)))
-}
-
 fn apply_mapping(t: Tagged, m: &Mapping, mesh_path: &Path) -> Result<Mapped, AtlasError> {
     let Tagged {
         mesh,
@@ -406,7 +159,8 @@ fn apply_mapping(t: Tagged, m: &Mapping, mesh_path: &Path) -> Result<Mapped, Atl
             dropped += 1;
             continue;
         }
-        let r = region_of(m, tag, &centroid(nodes, tet))
+        let r = m
+            .region_of(tag, &centroid(nodes, tet))
             .ok_or_else(|| unclaimed("tetrahedron", k, tag))?;
         if m.regions[r].thickness_mm.is_some() {
             return Err(AtlasError::invalid(
@@ -435,7 +189,7 @@ fn apply_mapping(t: Tagged, m: &Mapping, mesh_path: &Path) -> Result<Mapped, Atl
             dropped += 1;
             continue;
         }
-        match region_of(m, tag, &centroid(nodes, tri)) {
+        match m.region_of(tag, &centroid(nodes, tri)) {
             Some(r) if m.regions[r].thickness_mm.is_none() => {
                 return Err(AtlasError::invalid(
                     mesh_path,

@@ -3,13 +3,14 @@
 //! [`SurfaceDomain`]). Such an atlas has the three bones only: no eardrum membrane (an eardrum
 //! surface is open, so it bounds no volume), no joints, ligaments or tendons, and no node sets
 //! or load surfaces; each bone gets one whole-bone material (see
-//! [`super::import::material_library`]) and the landmarks come from a landmark file.
+//! [`super::mapping::material_library`]) and the landmarks come from a landmark file.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::format::{AtlasError, default_atlas, validate};
-use super::import::{landmarks_and_side, material_library, tie_landmarks};
+use super::import::{landmarks_and_side, tie_landmarks};
+use super::mapping::material_library;
 use super::model::{Atlas, Part, RegionInfo};
 use crate::ear::Side;
 use crate::io_util::sha256_hex;
