@@ -652,3 +652,72 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
         "{err}"
     );
 }
+
+#[test]
+fn vtu_import_reads_tags_from_a_named_array_or_a_labels_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let atlas = default_atlas().unwrap();
+    // the default mesh as VTU whose `region` array is all 1 and whose real tags (+100) are
+    // in the cell array `tags`
+    let mut mesh = atlas.mesh.clone();
+    let tags: Vec<f64> = mesh.cell_regions().map(|r| f64::from(r + 100)).collect();
+    mesh.tets.regions.iter_mut().for_each(|r| *r = 1);
+    mesh.triangle_regions.iter_mut().for_each(|r| *r = 1);
+    let vtu = tmp.path().join("tagged.vtu");
+    write_vtu(
+        &vtu,
+        &mesh,
+        &[otoatlas::mesh::io::CellArray {
+            name: "tags".into(),
+            values: tags.clone(),
+        }],
+        VtuEncoding::Base64,
+    )
+    .unwrap();
+    let (_, _, landmarks, _) = default_as_msh(tmp.path(), 100);
+    let shifted = mapping_of(&atlas, 100, &[])
+        .lines()
+        .filter(|l| {
+            !l.starts_with("tags")
+                && !l.starts_with("[[surface]]")
+                && !l.starts_with("name = \"footplate")
+                && !l.starts_with("name = \"eardrum")
+        })
+        .map(|l| match l.strip_prefix("tag = ") {
+            Some(t) => format!("tag = {}", t.parse::<u16>().unwrap() + 100),
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let import = |mapping_text: &str, labels: Option<&Path>| {
+        let mapping = tmp.path().join("tags.toml");
+        std::fs::write(&mapping, mapping_text).unwrap();
+        import_atlas(&ImportRequest {
+            mesh: &vtu,
+            mapping: &mapping,
+            landmarks: &landmarks,
+            labels,
+            side: None,
+            name: "tagged",
+        })
+    };
+    let from_array = import(&format!("tag_array = \"tags\"\n{shifted}\n"), None).unwrap();
+    assert_eq!(from_array.mesh, atlas.mesh);
+    assert_eq!(from_array.regions, atlas.regions);
+    // the same tags from a labels file (tetrahedra first, then triangles)
+    let labels = tmp.path().join("labels.txt");
+    let text: Vec<String> = tags.iter().map(|t| format!("{t}")).collect();
+    std::fs::write(&labels, text.join("\n")).unwrap();
+    let from_file = import(&format!("{shifted}\n"), Some(&labels)).unwrap();
+    assert_eq!(from_file.mesh, atlas.mesh);
+    // a labels file of the wrong length names itself
+    std::fs::write(&labels, "101\n102\n").unwrap();
+    let err = import(&format!("{shifted}\n"), Some(&labels)).unwrap_err();
+    assert!(err.to_string().contains("labels.txt"), "{err}");
+    // a missing tag array names the mesh file
+    let err = import(&format!("tag_array = \"nope\"\n{shifted}\n"), None).unwrap_err();
+    assert!(
+        err.to_string().contains("tagged.vtu") && err.to_string().contains("nope"),
+        "{err}"
+    );
+}
