@@ -180,7 +180,7 @@ fn apply_mapping(t: Tagged, m: &Mapping, mesh_path: &Path) -> Result<Mapped, Atl
     let mut triangle_regions = Vec::new();
     let mut surfaces: BTreeMap<String, Vec<[u32; 3]>> = BTreeMap::new();
     for (k, (tri, &tag)) in mesh.triangles.iter().zip(&triangle_tags).enumerate() {
-        let mut claimed = m.drop.contains(&tag);
+        let mut claimed = false;
         for s in m.surfaces.iter().filter(|s| s.tags.contains(&tag)) {
             surfaces.entry(s.name.clone()).or_default().push(*tri);
             claimed = true;
@@ -190,6 +190,8 @@ fn apply_mapping(t: Tagged, m: &Mapping, mesh_path: &Path) -> Result<Mapped, Atl
             continue;
         }
         match m.region_of(tag, &centroid(nodes, tri)) {
+            // a load-surface triangle on a volumetric region's tag is no element
+            Some(r) if m.regions[r].thickness_mm.is_none() && claimed => {}
             Some(r) if m.regions[r].thickness_mm.is_none() => {
                 return Err(AtlasError::invalid(
                     mesh_path,

@@ -79,9 +79,10 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
         let file = match &e {
             crate::mesh::mesher::SurfaceDomainError::NotClosed { region, .. }
             | crate::mesh::mesher::SurfaceDomainError::InsideOut { region, .. }
-            | crate::mesh::mesher::SurfaceDomainError::Invalid { region, .. } => {
-                files[usize::from(*region) - 1].clone()
-            }
+            | crate::mesh::mesher::SurfaceDomainError::Invalid { region, .. } => files
+                .get(usize::from(*region).wrapping_sub(1))
+                .cloned()
+                .unwrap_or_else(|| req.dir.to_path_buf()),
             _ => req.dir.to_path_buf(),
         };
         AtlasError::invalid(
