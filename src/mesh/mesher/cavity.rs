@@ -33,35 +33,60 @@ fn face_neighbours<'a>(
     })
 }
 
-/// A face-connected piece of the outside and the most frequent label across its faces.
-struct Piece {
-    tets: Vec<usize>,
-    neighbour: u16,
-}
-
-/// Every face-connected piece of the outside, in order of its first tet.
-fn outside_pieces(tets: &[[u32; 4]], adj: &NodeTets, labels: &[u16]) -> Vec<Piece> {
-    let mut seen = vec![false; tets.len()];
-    let mut out = Vec::new();
+/// Fills the small cavities; returns the number of tets relabelled.
+///
+/// A cavity touches labelled tets, so only outside tets with a node on a labelled tet start a
+/// search; each search stops once its piece exceeds [`MAX_CAVITY_TETS`] or reaches the shell,
+/// and marks what it saw as open, so every tet is searched a bounded number of times.
+pub fn fill_cavities(lattice: &Lattice, adj: &NodeTets, labels: &mut [u16]) -> usize {
+    let tets = &lattice.tets;
+    let mut near_material = vec![false; lattice.nodes.len()];
+    for (t, tet) in tets.iter().enumerate() {
+        if labels[t] != 0 {
+            for &v in tet {
+                near_material[v as usize] = true;
+            }
+        }
+    }
+    // 0: unseen, 1: open (part of a large or shell-reaching piece), 2: in the current piece
+    let mut state = vec![0u8; tets.len()];
+    let mut piece: Vec<usize> = Vec::with_capacity(MAX_CAVITY_TETS + 1);
     let mut around: Vec<u16> = Vec::new();
+    let mut filled = 0;
     for seed in 0..tets.len() {
-        if seen[seed] || labels[seed] != 0 {
+        if labels[seed] != 0
+            || state[seed] != 0
+            || !tets[seed].iter().any(|&v| near_material[v as usize])
+        {
             continue;
         }
-        seen[seed] = true;
-        let mut piece = vec![seed];
+        piece.clear();
         around.clear();
+        piece.push(seed);
+        state[seed] = 2;
+        let mut open = false;
         let mut k = 0;
-        while k < piece.len() {
-            for o in face_neighbours(piece[k], tets, adj) {
+        while k < piece.len() && !open {
+            let t = piece[k];
+            open = tets[t].iter().any(|&v| lattice.on_shell[v as usize]);
+            for o in face_neighbours(t, tets, adj) {
                 if labels[o] != 0 {
                     around.push(labels[o]);
-                } else if !seen[o] {
-                    seen[o] = true;
+                } else if state[o] == 1 {
+                    open = true;
+                } else if state[o] == 0 {
+                    state[o] = 2;
                     piece.push(o);
                 }
             }
+            open |= piece.len() > MAX_CAVITY_TETS;
             k += 1;
+        }
+        if open {
+            for &t in &piece {
+                state[t] = 1;
+            }
+            continue;
         }
         around.sort_unstable();
         let mut best = (0usize, 0u16);
@@ -70,29 +95,11 @@ fn outside_pieces(tets: &[[u32; 4]], adj: &NodeTets, labels: &[u16]) -> Vec<Piec
                 best = (run.len(), run[0]);
             }
         }
-        out.push(Piece {
-            tets: piece,
-            neighbour: best.1,
-        });
-    }
-    out
-}
-
-/// Fills the small cavities; returns the number of tets relabelled.
-pub fn fill_cavities(lattice: &Lattice, adj: &NodeTets, labels: &mut [u16]) -> usize {
-    let mut changed = 0;
-    for p in outside_pieces(&lattice.tets, adj, labels) {
-        let open = p.tets.iter().any(|&t| {
-            lattice.tets[t]
-                .iter()
-                .any(|&v| lattice.on_shell[v as usize])
-        });
-        if !open && p.tets.len() <= MAX_CAVITY_TETS {
-            for &t in &p.tets {
-                labels[t] = p.neighbour;
-            }
-            changed += p.tets.len();
+        for &t in &piece {
+            labels[t] = best.1;
+            state[t] = 1;
         }
+        filled += piece.len();
     }
-    changed
+    filled
 }
