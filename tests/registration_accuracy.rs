@@ -151,7 +151,11 @@ fn ten_more_phantoms_register_within_the_accuracy_bounds() {
         "9100",
         "--quiet",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let mut spacings = Vec::new();
     let mut sides = Vec::new();
     for k in 1..=10 {
@@ -265,8 +269,7 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(again["scores"], full["scores"]);
     assert_eq!(again["rigid"], full["rigid"]);
     let timings: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("timings.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("timings.json")).unwrap()).unwrap();
     assert!(timings.get("deform").is_none() && timings.get("score").is_some());
     // from deform: the rigid fit is read back, the deformation recomputed identically
     let (code, again) = register(&case, &out, &["--from", "deform"]);

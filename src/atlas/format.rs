@@ -53,6 +53,8 @@ pub enum AtlasError {
     Mesh(#[from] MeshIoError),
     #[error(transparent)]
     Build(#[from] super::build::BuildError),
+    #[error(transparent)]
+    Landmarks(#[from] crate::register::landmarks::LandmarkError),
 }
 
 impl AtlasError {

@@ -11,6 +11,8 @@ pub mod build;
 pub mod eardrum;
 pub mod export;
 pub mod format;
+pub mod import;
+pub mod mapping;
 pub mod materials;
 pub mod membrane;
 pub mod model;
@@ -18,6 +20,7 @@ pub mod region;
 pub mod sdf;
 pub mod spec;
 pub mod summary;
+pub mod surfaces;
 pub mod volume;
 
 pub use crate::ear::Landmarks;

@@ -2,9 +2,7 @@
 //! tendons) meshed into conforming tetrahedra by the multi-domain mesher. Joints, ligaments,
 //! tendons and the stapes (crura about 0.3 mm) are declared thin so they survive the lattice.
 
-#[cfg(test)]
-use crate::atlas::Bone;
-use crate::atlas::{Anatomy, Region};
+use crate::atlas::{Anatomy, Bone, Region};
 use crate::mesh::mesher::{MeshOutput, MesherError, MesherParams, mesh_domain};
 
 /// Target edge of the default atlas [mm]: about 6,400 tetrahedra for the chain and its
@@ -22,11 +20,29 @@ pub fn thin_regions() -> Vec<u16> {
         .collect()
 }
 
+/// The unions whose boundary must be a manifold besides each region's: each bone's regions
+/// (its exported surface) and all regions (the whole chain).
+pub fn manifold_groups() -> Vec<Vec<u16>> {
+    let of = |bone: Bone| -> Vec<u16> {
+        Region::ALL
+            .iter()
+            .filter(|r| r.bone() == Some(bone))
+            .map(|r| r.label())
+            .collect()
+    };
+    vec![
+        of(Bone::Malleus),
+        of(Bone::Incus),
+        Region::ALL.iter().map(|r| r.label()).collect(),
+    ]
+}
+
 /// Meshes the anatomy's volumetric regions at the target edge length (mm).
 pub fn mesh_anatomy(anatomy: &Anatomy, target_edge_mm: f64) -> Result<MeshOutput, MesherError> {
     let params = MesherParams {
         target_edge_mm,
         thin_regions: thin_regions(),
+        manifold_groups: manifold_groups(),
         ..MesherParams::default()
     };
     mesh_domain(anatomy, &params)
@@ -63,8 +79,8 @@ mod tests {
                 q.min_dihedral_deg
             );
         }
-        // every region's boundary is closed, manifold and outward; so is the whole, which is
-        // one connected system
+        // every region's boundary, each bone's (the union of its regions) and the whole
+        // chain's are closed, manifold and outward; the whole is one connected system
         for r in Region::ALL {
             let b = m.boundary(BoundaryOf::Region(r.label())).surface;
             assert!(
@@ -73,17 +89,14 @@ mod tests {
                 r.name()
             );
         }
+        for group in manifold_groups() {
+            let b = m.boundary(BoundaryOf::Regions(&group)).surface;
+            let topo = surface_topology(&b);
+            assert!(topo.is_closed_oriented_manifold(), "{group:?}: {topo:?}");
+        }
         let whole = m.boundary(BoundaryOf::Whole).surface;
         let topo = surface_topology(&whole);
-        assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
-        assert_eq!(topo.components, 1, "{topo:?}");
-        // and so is each ossicle (the union of its regions): no slit between head and neck
-        for bone in [Bone::Malleus, Bone::Incus, Bone::Stapes] {
-            let labels: Vec<u16> = bone.regions().iter().map(|r| r.label()).collect();
-            let b = m.boundary(BoundaryOf::Regions(&labels)).surface;
-            let t = surface_topology(&b);
-            assert!(t.is_closed_oriented_manifold(), "{bone:?}: {t:?}");
-        }
+        assert_eq!((topo.components, topo.border_edges), (1, 0), "{topo:?}");
         // volumes within 10 % of the implicit anatomy's (malleus ~10.3 mm³, measured by
         // lattice integration in tests/atlas_anatomy.rs)
         let malleus: f64 = [

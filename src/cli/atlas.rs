@@ -2,7 +2,7 @@
 //! an atlas folder).
 
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
 
@@ -10,9 +10,11 @@ use super::Report;
 use crate::Error;
 use crate::atlas::build::DEFAULT_MEMBRANE_EDGE_MM;
 use crate::atlas::export::export_atlas;
+use crate::atlas::import::{ImportRequest, import_atlas};
 use crate::atlas::summary::summarise;
+use crate::atlas::surfaces::{SurfaceBuild, build_from_surfaces};
 use crate::atlas::volume::{DEFAULT_EDGE_MM, FINE_EDGE_MM};
-use crate::atlas::{Anatomy, build_atlas, load_atlas, write_atlas};
+use crate::atlas::{Anatomy, Atlas, build_atlas, load_atlas, write_atlas};
 use crate::ear::Side;
 use crate::progress;
 
@@ -37,6 +39,41 @@ pub enum AtlasCommand {
     Info(SourceArgs),
     /// Write surfaces/{malleus,incus,stapes,eardrum}.ply, volume.vtu and the landmarks.
     Export(ExportArgs),
+    /// Make an atlas folder from a tagged volume mesh (.vtu or .msh) and a mapping file.
+    #[command(after_help = "Examples:
+  otoatlas atlas import --mesh chain.vtu --labels chain_labels.txt \\
+      --mapping chain.mapping.toml --landmarks chain_landmarks.json --side right --out my-atlas
+The mapping file format is in docs/atlas-format.md.")]
+    Import(ImportArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ImportArgs {
+    /// The tagged volume mesh: VTU (tags in the `region` cell array or the mapping's
+    /// tag_array) or Gmsh MSH 2.2 ASCII (physical tags).
+    #[arg(long, value_name = "FILE")]
+    pub mesh: PathBuf,
+    /// The mapping file (TOML): tag -> region, part, material, thickness; dropped tags; node
+    /// sets and surfaces.
+    #[arg(long, value_name = "FILE")]
+    pub mapping: PathBuf,
+    /// The umbo, incudomalleolar and incudostapedial landmarks in the mesh's frame (.json,
+    /// .fcsv, .mrk.json or .csv).
+    #[arg(long, value_name = "FILE")]
+    pub landmarks: PathBuf,
+    /// One integer tag per cell (tetrahedra, then triangles, in file order), replacing the
+    /// mesh's own tags.
+    #[arg(long, value_name = "FILE")]
+    pub labels: Option<PathBuf>,
+    /// The ear; default: the side the landmark file states.
+    #[arg(long, value_enum)]
+    pub side: Option<Side>,
+    /// The atlas's name in its manifest.
+    #[arg(long, default_value = "imported")]
+    pub name: String,
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -60,8 +97,18 @@ pub struct ExportArgs {
 #[derive(Debug, Args)]
 pub struct BuildArgs {
     /// The anatomy description (TOML); default: the embedded assets/anatomy.toml.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with = "surfaces")]
     pub anatomy: Option<PathBuf>,
+    /// Build from closed surfaces instead: DIR/{malleus,incus,stapes}.{ply,stl,obj} (bones
+    /// only: no eardrum, ligaments, node sets or load surfaces).
+    #[arg(long, value_name = "DIR", requires = "landmarks")]
+    pub surfaces: Option<PathBuf>,
+    /// With --surfaces: the three landmarks in the surfaces' frame.
+    #[arg(long, value_name = "FILE", requires = "surfaces")]
+    pub landmarks: Option<PathBuf>,
+    /// With --surfaces: the ear (default: the side the landmark file states).
+    #[arg(long, value_enum, requires = "surfaces")]
+    pub side: Option<Side>,
     /// Target tetrahedron edge [mm].
     #[arg(long, value_name = "MM", default_value_t = DEFAULT_EDGE_MM, conflicts_with = "fine")]
     pub edge: f64,
@@ -84,14 +131,11 @@ pub fn run(args: &AtlasArgs) -> Result<Report, Error> {
         AtlasCommand::Build(b) => build(b),
         AtlasCommand::Info(s) => info(s),
         AtlasCommand::Export(e) => export(e),
+        AtlasCommand::Import(i) => import(i),
     }
 }
 
 fn build(args: &BuildArgs) -> Result<Report, Error> {
-    let anatomy = match &args.anatomy {
-        Some(p) => Anatomy::load(p)?,
-        None => Anatomy::default_right()?,
-    };
     let edge = if args.fine { FINE_EDGE_MM } else { args.edge };
     for (name, v) in [("--edge", edge), ("--membrane-edge", args.membrane_edge)] {
         if !(v.is_finite() && (0.02..=2.0).contains(&v)) {
@@ -101,14 +145,47 @@ fn build(args: &BuildArgs) -> Result<Report, Error> {
         }
     }
     progress::log(format!("atlas build: meshing at {edge} mm"));
-    let atlas = build_atlas(&anatomy, &args.name, edge, args.membrane_edge)
-        .map_err(crate::atlas::AtlasError::from)?;
+    let atlas = match (&args.surfaces, &args.landmarks) {
+        (Some(dir), Some(landmarks)) => build_from_surfaces(&SurfaceBuild {
+            dir,
+            landmarks,
+            side: args.side,
+            name: &args.name,
+            edge_mm: edge,
+        })?,
+        _ => {
+            let anatomy = match &args.anatomy {
+                Some(p) => Anatomy::load(p)?,
+                None => Anatomy::default_right()?,
+            };
+            build_atlas(&anatomy, &args.name, edge, args.membrane_edge)
+                .map_err(crate::atlas::AtlasError::from)?
+        }
+    };
     write_atlas(&args.out, &atlas)?;
-    let summary = summarise(&atlas);
+    wrote(&args.out, &atlas)
+}
+
+fn import(args: &ImportArgs) -> Result<Report, Error> {
+    let atlas = import_atlas(&ImportRequest {
+        mesh: &args.mesh,
+        mapping: &args.mapping,
+        landmarks: &args.landmarks,
+        labels: args.labels.as_deref(),
+        side: args.side,
+        name: &args.name,
+    })?;
+    write_atlas(&args.out, &atlas)?;
+    wrote(&args.out, &atlas)
+}
+
+/// The report of a command that wrote an atlas folder.
+fn wrote(out: &Path, atlas: &Atlas) -> Result<Report, Error> {
+    let summary = summarise(atlas);
     Ok(Report {
         text: format!(
             "wrote {}: {} tetrahedra, {} membrane triangles, {} nodes\n",
-            args.out.display(),
+            out.display(),
             summary.tetrahedra,
             summary.membrane_triangles,
             summary.nodes

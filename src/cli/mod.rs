@@ -4,8 +4,8 @@
 pub mod atlas;
 mod inspect;
 mod landmarks;
-mod run;
 mod phantom;
+mod run;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -13,8 +13,8 @@ use crate::Error;
 use crate::atlas::{Atlas, Part};
 use crate::config::IngestConfig;
 use crate::mesh::TriMesh;
-use crate::meshdev::structures::{default_label_table, load_structures};
 use crate::meshdev::sampling::DEFAULT_SEED;
+use crate::meshdev::structures::{default_label_table, load_structures};
 use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
 
 /// Area samples per surface and direction: the sampling error of a mean distance is then far

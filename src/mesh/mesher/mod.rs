@@ -33,6 +33,7 @@
 //! Deterministic: labels and interface targets are computed in parallel into index-ordered
 //! vectors; repair and guarded moves run sequentially in node order.
 
+mod cavity;
 mod label;
 pub mod lattice;
 mod peel;
@@ -61,6 +62,9 @@ pub struct MesherParams {
     pub thin_regions: Vec<u16>,
     /// Refuse lattices with more nodes than this (memory guard).
     pub max_lattice_nodes: usize,
+    /// Unions of regions whose boundary must be a manifold too (the regions of one bone;
+    /// all regions for the whole domain); repaired by adding to the union (see `repair`).
+    pub manifold_groups: Vec<Vec<u16>>,
 }
 
 impl Default for MesherParams {
@@ -71,6 +75,7 @@ impl Default for MesherParams {
             snap_sweeps: 4,
             thin_regions: Vec::new(),
             max_lattice_nodes: 20_000_000,
+            manifold_groups: Vec::new(),
         }
     }
 }
@@ -136,6 +141,30 @@ fn check(
     }
 }
 
+/// Repairs the labels into manifold regions and groups and fills the small cavities, until
+/// neither changes anything (at most a few rounds).
+fn settle(
+    lattice: &Lattice,
+    adj: &NodeTets,
+    labels: &mut [u16],
+    thin: &[u16],
+    groups: &[Vec<u16>],
+) -> RepairOutcome {
+    let mut out = RepairOutcome::default();
+    for _ in 0..4 {
+        let r = repair::make_manifold(lattice, adj, labels, thin, groups, 50);
+        out.relabelled += r.relabelled;
+        out.sweeps += r.sweeps;
+        out.defects_left = r.defects_left;
+        let filled = cavity::fill_cavities(lattice, adj, labels);
+        out.cavities_filled += filled;
+        if filled == 0 {
+            break;
+        }
+    }
+    out
+}
+
 /// Meshes every region of `domain` into one conforming, region-labelled tet mesh.
 pub fn mesh_domain<D: LabelledDomain + ?Sized>(
     domain: &D,
@@ -177,7 +206,8 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
     let mut labels = label::label_tets(domain, &lattice, &params.thin_regions);
     let adj = NodeTets::new(lattice.nodes.len(), &lattice.tets);
     let thin = &params.thin_regions;
-    let mut repair = repair::make_manifold(&lattice, &adj, &mut labels, thin, 50);
+    let groups = &params.manifold_groups;
+    let mut repair = settle(&lattice, &adj, &mut labels, thin, groups);
     let mut targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
     let peeled = peel::peel_flat_caps(
         &lattice.nodes,
@@ -189,9 +219,10 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
         thin,
     );
     if peeled > 0 {
-        let again = repair::make_manifold(&lattice, &adj, &mut labels, thin, 50);
+        let again = settle(&lattice, &adj, &mut labels, thin, groups);
         repair.relabelled += again.relabelled;
         repair.sweeps += again.sweeps;
+        repair.cavities_filled += again.cavities_filled;
         repair.defects_left = again.defects_left;
         targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
     }

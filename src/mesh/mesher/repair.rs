@@ -6,14 +6,17 @@
 //! most twice. Then the `r` part of the link is a disk and `r`'s boundary is a manifold
 //! surface at `v` (no pinched vertex, no edge shared by four boundary faces).
 //!
-//! The union of all regions (label ≠ 0) is checked the same way, so that the outer boundary
-//! of the whole mesh is a manifold too (no slit between two regions, no two regions touching
-//! along an edge only).
-//!
 //! A defect is fixed locally and deterministically: a pinched edge ring is filled with `r` when
 //! `r` has the majority there (or is a thin region), else carved to the dominant other label;
 //! a split `r` keeps its largest piece (thin regions fill the star instead); a split
 //! complement is filled with `r`. Sweeps in node order repeat until nothing changes.
+//!
+//! Groups (unions of regions, e.g. the regions of one bone, or all regions: the whole domain)
+//! get the same criterion with `inside` = "label in the group", so that two regions of a
+//! group touching along an edge or at a vertex only do not leave the union's boundary
+//! non-manifold. A group defect is always fixed by adding to the group (the ring, the star or
+//! the smaller complement pieces take the group's most frequent label there), never by
+//! carving it, so thin structures are not cut.
 
 use super::lattice::{Lattice, NodeTets};
 
@@ -27,6 +30,8 @@ pub struct RepairOutcome {
     pub sweeps: usize,
     /// (vertex, region) pairs still non-manifold after the last sweep (0 on success).
     pub defects_left: usize,
+    /// Outside tets of small enclosed voids given a label (`cavity`).
+    pub cavities_filled: usize,
 }
 
 enum Defect {
@@ -238,49 +243,72 @@ fn fix(
     }
 }
 
-/// Fixes one defect of the union of all regions (the domain's outer boundary): rings and
-/// complement pieces are filled with the dominant region around them, stray pieces and
-/// minority rings go to the outside.
-fn fix_union(star: &Star, inside: &[bool], defect: Defect, labels: &mut [u16]) -> usize {
-    let n = star.tets.len();
-    let dominant = dominant_other(star.tets.iter().copied(), labels, 0);
-    let mut set = |positions: &mut dyn Iterator<Item = usize>, label: u16| {
-        let mut changed = 0;
-        for i in positions {
-            let t = star.tets[i] as usize;
-            if labels[t] != label {
-                labels[t] = label;
-                changed += 1;
-            }
-        }
-        changed
-    };
-    match defect {
-        Defect::None => 0,
-        Defect::Edge(w) => {
-            let ring = || (0..n).filter(move |&i| star.corners[i].contains(&w));
-            let in_r = ring().filter(|&i| inside[i]).count();
-            if 2 * in_r >= ring().count() {
-                set(&mut ring().filter(|&i| !inside[i]), dominant)
-            } else {
-                set(&mut ring().filter(|&i| inside[i]), 0)
-            }
-        }
-        Defect::SplitRegion => {
-            let (mut uf, _, largest) = star.components(inside, true);
-            set(
-                &mut (0..n).filter(|&i| inside[i] && uf.find(i) != largest),
-                0,
-            )
-        }
-        Defect::SplitComplement => {
-            let (mut uf, _, largest) = star.components(inside, false);
-            set(
-                &mut (0..n).filter(|&i| !inside[i] && uf.find(i) != largest),
-                dominant,
-            )
+/// The most frequent label of `group` among `tets` (ties: the smallest label).
+fn dominant_in(tets: impl Iterator<Item = u32>, labels: &[u16], group: &[u16]) -> Option<u16> {
+    let mut counts = [0u32; MAX_STAR];
+    for t in tets {
+        if let Some(k) = group.iter().position(|&g| g == labels[t as usize])
+            && k < MAX_STAR
+        {
+            counts[k] += 1;
         }
     }
+    (0..group.len().min(MAX_STAR))
+        .filter(|&k| counts[k] > 0)
+        .min_by_key(|&k| (std::cmp::Reverse(counts[k]), group[k]))
+        .map(|k| group[k])
+}
+
+/// Fixes one defect of a group's union at the star by adding to the group; returns the
+/// number of tets relabelled.
+fn fix_group(
+    star: &Star,
+    inside: &[bool],
+    defect: Defect,
+    group: &[u16],
+    labels: &mut [u16],
+) -> usize {
+    let n = star.tets.len();
+    let fill: Vec<usize> = match defect {
+        Defect::None => return 0,
+        Defect::Edge(w) => (0..n)
+            .filter(|&i| star.corners[i].contains(&w) && !inside[i])
+            .collect(),
+        Defect::SplitRegion => (0..n).filter(|&i| !inside[i]).collect(),
+        Defect::SplitComplement => {
+            let (mut uf, _, largest) = star.components(inside, false);
+            (0..n)
+                .filter(|&i| !inside[i] && uf.find(i) != largest)
+                .collect()
+        }
+    };
+    let from =
+        |positions: &[usize]| dominant_in(positions.iter().map(|&i| star.tets[i]), labels, group);
+    // the label the neighbourhood of the filled tets has most (else the star's)
+    let near: Vec<usize> = (0..n)
+        .filter(|&i| {
+            inside[i]
+                && fill.iter().any(|&f| {
+                    star.corners[f]
+                        .iter()
+                        .filter(|c| star.corners[i].contains(c))
+                        .count()
+                        == 3
+                })
+        })
+        .collect();
+    let Some(label) = from(&near).or_else(|| from(&(0..n).collect::<Vec<_>>())) else {
+        return 0;
+    };
+    let mut changed = 0;
+    for i in fill {
+        let t = star.tets[i] as usize;
+        if labels[t] != label {
+            labels[t] = label;
+            changed += 1;
+        }
+    }
+    changed
 }
 
 /// One sweep over all nodes; returns (tets relabelled, defects seen).
@@ -289,6 +317,7 @@ fn sweep(
     adj: &NodeTets,
     labels: &mut [u16],
     thin: &[u16],
+    groups: &[Vec<u16>],
     apply: bool,
 ) -> (usize, usize) {
     let (mut changed, mut defects) = (0, 0);
@@ -334,104 +363,45 @@ fn sweep(
                 );
             }
         }
-        // the union of the regions (the outer boundary) must be manifold as well: two
-        // regions touching along an edge only, or a slit between them, would leave an edge
-        // shared by four outer faces
-        for _ in 0..4 {
-            for (i, &t) in tets.iter().enumerate() {
-                inside[i] = labels[t as usize] != 0;
+        for group in groups {
+            for _ in 0..4 {
+                for (i, &t) in tets.iter().enumerate() {
+                    inside[i] = group.contains(&labels[t as usize]);
+                }
+                let defect = star.defect(&inside[..tets.len()]);
+                if matches!(defect, Defect::None) {
+                    break;
+                }
+                defects += 1;
+                if !apply {
+                    break;
+                }
+                changed += fix_group(&star, &inside[..tets.len()], defect, group, labels);
             }
-            if inside[..tets.len()].iter().all(|&x| x) {
-                break;
-            }
-            let defect = star.defect(&inside[..tets.len()]);
-            if matches!(defect, Defect::None) {
-                break;
-            }
-            defects += 1;
-            if !apply {
-                break;
-            }
-            changed += fix_union(&star, &inside[..tets.len()], defect, labels);
         }
     }
     (changed, defects)
 }
 
-/// Fills enclosed voids: outside tets (label 0) that no path through shared faces of outside
-/// tets connects to the lattice's shell take the dominant label around them, so the outer
-/// boundary of the mesh is one surface with no bubble inside. Returns the tets filled.
-fn fill_voids(lattice: &Lattice, adj: &NodeTets, labels: &mut [u16]) -> usize {
-    let n = lattice.tets.len();
-    let shares_face = |a: usize, b: usize| {
-        lattice.tets[a]
-            .iter()
-            .filter(|v| lattice.tets[b].contains(v))
-            .count()
-            == 3
-    };
-    let mut reached = vec![false; n];
-    let mut stack: Vec<usize> = (0..n)
-        .filter(|&t| {
-            labels[t] == 0
-                && lattice.tets[t]
-                    .iter()
-                    .any(|&v| lattice.on_shell[v as usize])
-        })
-        .collect();
-    stack.iter().for_each(|&t| reached[t] = true);
-    while let Some(t) = stack.pop() {
-        for &v in &lattice.tets[t] {
-            for &u in adj.of(v as usize) {
-                let u = u as usize;
-                if !reached[u] && labels[u] == 0 && shares_face(t, u) {
-                    reached[u] = true;
-                    stack.push(u);
-                }
-            }
-        }
-    }
-    let mut void: Vec<usize> = (0..n).filter(|&t| labels[t] == 0 && !reached[t]).collect();
-    let filled = void.len();
-    // from the void's rim inwards: each pass fills the tets that touch a region
-    while !void.is_empty() {
-        let before = void.len();
-        void.retain(|&t| {
-            let around = lattice.tets[t]
-                .iter()
-                .flat_map(|&v| adj.of(v as usize).iter().copied());
-            let label = dominant_other(around, labels, 0);
-            if label == 0 {
-                return true;
-            }
-            labels[t] = label;
-            false
-        });
-        if void.len() == before {
-            break;
-        }
-    }
-    filled - void.len()
-}
-
-/// Relabels tets until every region is manifold at every vertex, or `max_sweeps` is reached.
+/// Relabels tets until every region and every group is manifold at every vertex, or
+/// `max_sweeps` is reached.
 pub fn make_manifold(
     lattice: &Lattice,
     adj: &NodeTets,
     labels: &mut [u16],
     thin: &[u16],
+    groups: &[Vec<u16>],
     max_sweeps: usize,
 ) -> RepairOutcome {
     let mut out = RepairOutcome::default();
     while out.sweeps < max_sweeps {
         out.sweeps += 1;
-        let (changed, _) = sweep(lattice, adj, labels, thin, true);
-        let filled = fill_voids(lattice, adj, labels);
-        out.relabelled += changed + filled;
-        if changed + filled == 0 {
+        let (changed, _) = sweep(lattice, adj, labels, thin, groups, true);
+        out.relabelled += changed;
+        if changed == 0 {
             break;
         }
     }
-    out.defects_left = sweep(lattice, adj, labels, thin, false).1;
+    out.defects_left = sweep(lattice, adj, labels, thin, groups, false).1;
     out
 }

@@ -353,3 +353,81 @@ fn curved_interface_between_core_and_shell_conforms() {
     let topo = surface_topology(&shell.surface);
     assert_eq!((topo.components, topo.euler), (2, 4));
 }
+
+#[test]
+fn a_group_of_regions_touching_along_an_edge_gets_a_manifold_union() {
+    // two boxes meeting along the line x = y = 1.03 only: each region's boundary is a
+    // manifold by itself, their union's is not unless the pair is declared a group
+    let domain = Boxes(vec![
+        (Vector3::new(-1.0, -1.0, 0.0), Vector3::new(1.03, 1.03, 2.0)),
+        (Vector3::new(1.03, 1.03, 0.0), Vector3::new(3.0, 3.0, 2.0)),
+    ]);
+    let plain = mesh_domain(&domain, &params(0.35)).unwrap();
+    check_mesh(&plain.mesh);
+    let union = |m: &TetMesh| surface_topology(&m.boundary(BoundaryOf::Whole).surface);
+    assert!(
+        !union(&plain.mesh).is_closed_oriented_manifold(),
+        "{:?}",
+        union(&plain.mesh)
+    );
+    let grouped = mesh_domain(
+        &domain,
+        &MesherParams {
+            manifold_groups: vec![vec![1, 2]],
+            ..params(0.35)
+        },
+    )
+    .unwrap();
+    assert_eq!(grouped.report.repair.defects_left, 0);
+    check_mesh(&grouped.mesh);
+    let topo = union(&grouped.mesh);
+    assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
+    assert_eq!(topo.components, 1, "{topo:?}");
+    // the repair fills a few lattice tets along the line: volumes stay near the exact ones
+    for (region, exact) in [(1, 2.03 * 2.03 * 2.0), (2, 1.97 * 1.97 * 2.0)] {
+        let v = grouped.mesh.region_volume(region);
+        assert!(
+            (v - exact).abs() < 0.03 * exact,
+            "region {region}: {v} vs {exact}"
+        );
+    }
+}
+
+/// A ball with a hollow ball inside, region 1.
+struct HollowBall {
+    inner: f64,
+}
+
+impl LabelledDomain for HollowBall {
+    fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        (Point3::from([-1.5; 3]), Point3::from([1.5; 3]))
+    }
+    fn region_count(&self) -> u16 {
+        1
+    }
+    fn label(&self, p: &Point3<f64>) -> u16 {
+        u16::from(self.signed_distance(1, p) < 0.0)
+    }
+    fn signed_distance(&self, _: u16, p: &Point3<f64>) -> f64 {
+        let r = (p - Point3::new(0.05, 0.02, 0.03)).norm();
+        (r - 1.5).max(self.inner - r)
+    }
+}
+
+#[test]
+fn voids_below_the_lattice_resolution_are_filled_larger_ones_kept() {
+    let components = |inner: f64| {
+        let out = mesh_domain(&HollowBall { inner }, &params(0.35)).unwrap();
+        check_mesh(&out.mesh);
+        (
+            surface_topology(&out.mesh.boundary(BoundaryOf::Whole).surface).components,
+            out.report.repair.cavities_filled,
+        )
+    };
+    // a 0.2 mm void (well under one 0.35 mm lattice cell): filled, one boundary component
+    let (small, filled) = components(0.2);
+    assert_eq!(small, 1);
+    assert!(filled <= 32, "{filled}");
+    // a 0.7 mm void: a real cavity, kept as an inner boundary component
+    assert_eq!(components(0.7).0, 2);
+}
