@@ -1,0 +1,54 @@
+//! `cargo run --release --example bench_run [-- REPEATS]`: `otoatlas run` on each sample case,
+//! REPEATS times (default 5), printing the median seconds of every stage and of the whole run.
+
+use std::path::Path;
+
+use otoatlas::config::Config;
+use otoatlas::pipeline::{Case, RunOptions, Stage, run_case};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let repeats: usize = std::env::args().nth(1).map_or(Ok(5), |s| s.parse())?;
+    otoatlas::progress::set_quiet(true);
+    let config = Config::default_config()?;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = tempfile::tempdir()?;
+    println!(
+        "case       spacing  dims          ingest landmarks rigid deform  score export  total"
+    );
+    for k in 1..=3 {
+        let case = Case::open(&root.join(format!("sample_cases/case-00{k}")))?;
+        let opts = RunOptions {
+            out: out.path().join(format!("case{k}")),
+            from: Stage::Ingest,
+            landmarks: None,
+            atlas: None,
+            side: None,
+        };
+        let mut per_stage: Vec<Vec<f64>> = vec![Vec::new(); Stage::ALL.len() + 1];
+        let mut dims = String::new();
+        let mut spacing = 0.0;
+        for _ in 0..repeats {
+            let t = std::time::Instant::now();
+            let summary = run_case(&case, &opts, &config)?;
+            per_stage[Stage::ALL.len()].push(t.elapsed().as_secs_f64());
+            for (stage, secs) in summary.timings {
+                per_stage[stage as usize].push(secs);
+            }
+            dims = summary.metrics["image"]["dims"].to_string();
+            spacing = summary.metrics["image"]["spacing"][0]
+                .as_f64()
+                .unwrap_or(0.0);
+        }
+        let m: Vec<f64> = per_stage.into_iter().map(median).collect();
+        println!(
+            "{:<10} {:>5.3} mm {:<13} {:>6.3} {:>9.3} {:>5.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3}",
+            case.id, spacing, dims, m[0], m[1], m[2], m[3], m[4], m[5], m[6]
+        );
+    }
+    Ok(())
+}
