@@ -31,6 +31,8 @@ pub enum Error {
     Anatomy(#[from] crate::atlas::AnatomyError),
     #[error(transparent)]
     Atlas(#[from] crate::atlas::AtlasError),
+    #[error(transparent)]
+    Mechanics(#[from] crate::mechanics::MechanicsError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -53,6 +55,10 @@ impl Error {
             | Error::Anatomy(_)
             | Error::Atlas(_)
             | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Mechanics(e) => match e {
+                crate::mechanics::MechanicsError::InvalidOption { .. } => ExitStatus::BadInput,
+                _ => ExitStatus::CaseFailed,
+            },
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }
     }

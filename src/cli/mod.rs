@@ -4,6 +4,8 @@
 pub mod atlas;
 mod inspect;
 mod landmarks;
+mod simulate;
+mod validate;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -33,9 +35,12 @@ pub enum Command {
     Inspect(inspect::InspectArgs),
     Landmarks(landmarks::LandmarksArgs),
     Atlas(atlas::AtlasArgs),
+    Validate(validate::ValidateArgs),
+    Simulate(simulate::SimulateArgs),
 }
 
-/// What a command hands back: text for a person, JSON for a script.
+/// What a command hands back: text for a person, JSON for a script. A JSON object with
+/// `"passed": false` (a failed verdict) makes the command exit with 1 after printing.
 pub struct Report {
     pub text: String,
     pub json: serde_json::Value,
@@ -56,11 +61,15 @@ pub fn main() -> ExitCode {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,
         Command::Atlas(a) => a.json,
+        Command::Validate(a) => a.json,
+        Command::Simulate(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
         Command::Atlas(a) => atlas::run(a),
+        Command::Validate(a) => validate::run(a),
+        Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(report) => {
@@ -70,7 +79,12 @@ pub fn main() -> ExitCode {
             } else {
                 print_stdout(&report.text);
             }
-            ExitCode::SUCCESS
+            // a report that carries a verdict which failed is a failed case
+            if report.json.get("passed") == Some(&serde_json::Value::Bool(false)) {
+                ExitCode::from(crate::ExitStatus::CaseFailed as u8)
+            } else {
+                ExitCode::SUCCESS
+            }
         }
         Err(err) => fail(&err, json),
     }
