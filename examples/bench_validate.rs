@@ -38,7 +38,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             p.frequency_hz, p.magnitude_um_s_per_pa, p.phase_deg
         );
     }
-    println!("TF peak {:?}; {} frequencies in {t_tf:.3} s", tf.peak(), tf.points.len());
+    println!(
+        "TF peak {:?}; {} frequencies in {t_tf:.3} s",
+        tf.peak(),
+        tf.points.len()
+    );
     let t2 = Instant::now();
     let curve = static_pressure_curve(&system, &UdspOptions::default())?;
     let t_s = t2.elapsed().as_secs_f64();

@@ -34,6 +34,10 @@ pub struct SimulateArgs {
     /// A force on the umbo along the medial axis [µN].
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub umbo_force: f64,
+    /// Refresh the CG preconditioner (a Cholesky factor of the step matrix) every N steps;
+    /// it is also refreshed whenever CG needs more than 25 iterations.
+    #[arg(long, value_name = "N", default_value_t = 1000)]
+    pub refactor_every: usize,
     /// Trajectory file: .csv (time_s, umbo_medial_mm, x, y, z) or .json.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
@@ -56,10 +60,13 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
         dt: args.dt,
         pressure_pa: args.pressure,
         umbo_force_un: args.umbo_force,
+        refactor_every: args.refactor_every,
     };
     let sim = simulate(&system, &options)?;
     if let Some(path) = &args.out {
-        let is_json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+        let is_json = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
         let bytes = if is_json {
             serde_json::to_vec_pretty(&sim.frames).unwrap_or_default()
         } else {
@@ -79,8 +86,15 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{} steps of {} s: {:.0} frames per second (setup {:.3} s, stepping {:.3} s)",
-        args.steps, args.dt, sim.frames_per_second, sim.setup_seconds, sim.step_seconds
+        "{} steps of {} s: {:.0} frames per second (setup {:.3} s, stepping {:.3} s, {:.1} CG \
+         iterations per step, {} factorisations)",
+        args.steps,
+        args.dt,
+        sim.frames_per_second,
+        sim.setup_seconds,
+        sim.step_seconds,
+        sim.mean_cg_iterations,
+        sim.factorisations
     );
     let _ = writeln!(
         text,
@@ -105,6 +119,8 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
         "setup_seconds": sim.setup_seconds,
         "step_seconds": sim.step_seconds,
         "failed_elements": sim.failed_elements,
+        "mean_cg_iterations": sim.mean_cg_iterations,
+        "factorisations": sim.factorisations,
         "final_umbo_medial_mm": last,
         "out": args.out,
     });

@@ -123,11 +123,7 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
             g.high
         );
     }
-    let _ = writeln!(
-        text,
-        "{}",
-        if v.passed { "PASSED" } else { "FAILED" }
-    );
+    let _ = writeln!(text, "{}", if v.passed { "PASSED" } else { "FAILED" });
     let json = serde_json::json!({
         "passed": v.passed,
         "verdict": v,

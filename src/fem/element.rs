@@ -40,12 +40,43 @@ impl<const N: usize> CorotElement<N> {
 
     /// Corotated elastic nodal forces (µN) for rotation `r` and deformation gradient `f`.
     pub fn forces(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> [Vector3<f64>; N] {
+        let rs = r * self.stress(r, f) * (-self.measure);
+        self.grads.map(|g| rs * g)
+    }
+
+    /// Corotated small-strain stress σ (Pa) in the rest frame: H = RᵀF − P,
+    /// ε = P sym(H) P, σ = λ tr(ε) P + 2μ ε.
+    pub fn stress(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
         let p = self.projector();
         let h = r.transpose() * f - p;
         let eps = p * (h + h.transpose()) * p * 0.5;
-        let sigma = p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu);
-        let rs = r * sigma * (-self.measure);
-        self.grads.map(|g| rs * g)
+        p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+    }
+
+    /// Visits the stress (initial-stress, geometric) stiffness of the element for every local
+    /// pair a ≤ b as the scalar w·g_aᵀ σ⁺ g_b (the block is that times I₃), with σ⁺ the
+    /// tensile part of σ (negative principal stresses dropped, so the term is positive
+    /// semi-definite: a membrane has no stiffness in compression, it wrinkles).
+    pub fn tensile_stress_stiffness(
+        &self,
+        r: &Matrix3<f64>,
+        f: &Matrix3<f64>,
+        mut visit: impl FnMut(usize, usize, f64),
+    ) {
+        let eig = self.stress(r, f).symmetric_eigen();
+        let mut tension = Matrix3::zeros();
+        for (k, &value) in eig.eigenvalues.iter().enumerate() {
+            if value > 0.0 {
+                let v = eig.eigenvectors.column(k);
+                tension += v * v.transpose() * value;
+            }
+        }
+        for a in 0..N {
+            let ta = tension * self.grads[a];
+            for b in a..N {
+                visit(a, b, self.measure * ta.dot(&self.grads[b]));
+            }
+        }
     }
 
     /// Visits the warped stiffness blocks R K_ab Rᵀ (µN/mm, rows of node a, columns of node

@@ -26,7 +26,12 @@ impl PressureLoad<'_> {
                 expected: "finite",
             });
         }
-        match self.triangles.iter().flatten().find(|&&v| v as usize >= node_count) {
+        match self
+            .triangles
+            .iter()
+            .flatten()
+            .find(|&&v| v as usize >= node_count)
+        {
             Some(&node) => Err(FemError::BadNodeReference {
                 what: "pressure triangle",
                 node,

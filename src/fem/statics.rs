@@ -149,7 +149,9 @@ impl<'m> StaticSolver<'m> {
     }
 
     /// As [`StaticSolver::solve`], plus a follower `pressure` re-evaluated at every iterate.
-    /// Its load stiffness (non-symmetric, of order p·L, mechanics-metrics §4.4) is left out
+    /// The tangent adds the membranes' tensile stress stiffness (a pressurised membrane's
+    /// out-of-plane stiffness; `SparsePattern::add_membrane_stress_stiffness`). The load's own
+    /// stiffness (non-symmetric, of order p·L, mechanics-metrics §4.4) is left out
     /// of the tangent, so the iteration is a modified Newton that converges linearly at the
     /// rate (load stiffness)/(structural stiffness); the equilibrium it reaches is exact.
     pub fn solve_with_pressure(
@@ -194,6 +196,16 @@ impl<'m> StaticSolver<'m> {
                 &self.fixed,
                 &mut self.values,
             )?;
+            if pressure.is_some() {
+                self.pattern.add_membrane_stress_stiffness(
+                    self.model,
+                    x,
+                    &self.state,
+                    1.0,
+                    &self.fixed,
+                    &mut self.values,
+                )?;
+            }
             self.cholesky.factorise(self.pattern.matrix(&self.values))?;
             self.cholesky.solve_in_place(&mut self.rhs)?;
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;

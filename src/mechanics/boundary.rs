@@ -196,7 +196,8 @@ impl MechanicalSystem {
         for t in footplate_tris {
             let [p, q, r] = t.map(|v| nodes[v as usize]);
             let a = 0.5 * (q - p).cross(&(r - p)).norm();
-            t.iter().for_each(|&v| weight[v as usize] += a / (3.0 * fp_area));
+            t.iter()
+                .for_each(|&v| weight[v as usize] += a / (3.0 * fp_area));
         }
         let footplate: Vec<(u32, f64)> = weight
             .iter()
@@ -204,20 +205,14 @@ impl MechanicalSystem {
             .filter(|(_, w)| **w > 0.0)
             .map(|(v, w)| (v as u32, *w))
             .collect();
-        let c_total = cochlear_damping_for(
-            atlas.damping.cochlear_impedance_pa_s_per_m3,
-            fp_area,
-        );
+        let c_total = cochlear_damping_for(atlas.damping.cochlear_impedance_pa_s_per_m3, fp_area);
         let node_dashpot = weight.iter().map(|w| w * c_total).collect();
         let tied = atlas.landmarks.umbo;
-        let cell = atlas
-            .mesh
-            .tets
-            .tets
-            .get(tied.tet as usize)
-            .ok_or_else(|| MechanicsError::BadAtlas {
+        let cell = atlas.mesh.tets.tets.get(tied.tet as usize).ok_or_else(|| {
+            MechanicsError::BadAtlas {
                 what: format!("the umbo is tied to tetrahedron {}, out of range", tied.tet),
-            })?;
+            }
+        })?;
         Ok(MechanicalSystem {
             model,
             fixed,

@@ -18,5 +18,7 @@ pub use boundary::{MechanicalSystem, TiedPoint};
 pub use error::MechanicsError;
 pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};
+pub use validate::{
+    Mechanics, Validation, ValidationOptions, mechanics, validate_atlas, validate_package,
+};
 pub use verdict::{Gate, Verdict, literature_verdict, relative_verdict};
-pub use validate::{Mechanics, Validation, ValidationOptions, mechanics, validate_atlas, validate_package};

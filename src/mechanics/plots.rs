@@ -38,19 +38,55 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, M
     let (m, p, u) = (mag(tf), phase(tf), umbo(&v.mechanics.udsp));
     let reference = v.reference.as_ref();
     let (rm, rp, ru) = reference.map_or((vec![], vec![], vec![]), |r| {
-        (mag(&r.transfer_function), phase(&r.transfer_function), umbo(&r.udsp))
+        (
+            mag(&r.transfer_function),
+            phase(&r.transfer_function),
+            umbo(&r.udsp),
+        )
     });
     let mut mag_series = vec![
-        Series { name: "model", points: &m, color: MODEL },
-        Series { name: "Goode band low", points: &low, color: BAND },
-        Series { name: "Goode band high", points: &high, color: BAND },
+        Series {
+            name: "model",
+            points: &m,
+            color: MODEL,
+        },
+        Series {
+            name: "Goode band low",
+            points: &low,
+            color: BAND,
+        },
+        Series {
+            name: "Goode band high",
+            points: &high,
+            color: BAND,
+        },
     ];
-    let mut phase_series = vec![Series { name: "model", points: &p, color: MODEL }];
-    let mut udsp_series = vec![Series { name: "model", points: &u, color: MODEL }];
+    let mut phase_series = vec![Series {
+        name: "model",
+        points: &p,
+        color: MODEL,
+    }];
+    let mut udsp_series = vec![Series {
+        name: "model",
+        points: &u,
+        color: MODEL,
+    }];
     if reference.is_some() {
-        mag_series.push(Series { name: "atlas", points: &rm, color: ATLAS });
-        phase_series.push(Series { name: "atlas", points: &rp, color: ATLAS });
-        udsp_series.push(Series { name: "atlas", points: &ru, color: ATLAS });
+        mag_series.push(Series {
+            name: "atlas",
+            points: &rm,
+            color: ATLAS,
+        });
+        phase_series.push(Series {
+            name: "atlas",
+            points: &rp,
+            color: ATLAS,
+        });
+        udsp_series.push(Series {
+            name: "atlas",
+            points: &ru,
+            color: ATLAS,
+        });
     }
     Ok(vec![
         (

@@ -98,11 +98,10 @@ impl TransferFunction {
     /// Frequency (Hz) and magnitude (µm/s/Pa) of the maximum, refined by a parabola through
     /// the largest sample and its neighbours in (log f, dB).
     pub fn peak(&self) -> Option<(f64, f64)> {
-        let (i, _) = self
-            .points
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.magnitude_um_s_per_pa.total_cmp(&b.1.magnitude_um_s_per_pa))?;
+        let (i, _) = self.points.iter().enumerate().max_by(|a, b| {
+            a.1.magnitude_um_s_per_pa
+                .total_cmp(&b.1.magnitude_um_s_per_pa)
+        })?;
         let p = &self.points;
         if i == 0 || i + 1 == p.len() {
             return Some((p[i].frequency_hz, p[i].magnitude_um_s_per_pa));

@@ -26,8 +26,15 @@ pub struct UdspOptions {
     pub pressures_pa: Vec<f64>,
     /// Largest load increment (Pa).
     pub max_step_pa: f64,
-    /// Convergence of each increment: largest nodal update (mm).
+    /// Convergence of each increment: largest nodal update (mm); 1e-5 mm is 0.05 % of the
+    /// umbo displacement at 1 kPa.
     pub tolerance_mm: f64,
+    /// Newton iteration limit per increment.
+    pub max_iterations: usize,
+    /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): the
+    /// eardrum is a membrane without bending stiffness, whose out-of-plane tangent is nearly
+    /// singular where it is not yet tensioned.
+    pub tangent_shift: f64,
 }
 
 impl Default for UdspOptions {
@@ -36,7 +43,9 @@ impl Default for UdspOptions {
         UdspOptions {
             pressures_pa: (-16..=16).map(|k| 250.0 * k as f64).collect(),
             max_step_pa: 250.0,
-            tolerance_mm: 1e-7,
+            tolerance_mm: 1e-5,
+            max_iterations: 500,
+            tangent_shift: 100.0,
         }
     }
 }
@@ -74,10 +83,7 @@ impl StaticCurve {
     /// Whether u strictly increases with p (a monotonic, sign-preserving response).
     pub fn monotonic(&self) -> bool {
         self.points.windows(2).all(|w| w[1].umbo_mm > w[0].umbo_mm)
-            && self
-                .points
-                .iter()
-                .all(|q| q.pressure_pa * q.umbo_mm >= 0.0)
+            && self.points.iter().all(|q| q.pressure_pa * q.umbo_mm >= 0.0)
     }
 }
 
@@ -89,6 +95,7 @@ pub fn static_pressure_curve(
     for (what, v) in [
         ("largest pressure step (Pa)", options.max_step_pa),
         ("static tolerance (mm)", options.tolerance_mm),
+        ("tangent shift + 1 (µN/mm)", options.tangent_shift + 1.0),
     ] {
         if !(v.is_finite() && v > 0.0) {
             return Err(MechanicsError::InvalidOption {
@@ -144,14 +151,17 @@ fn solve_branch(
     };
     let static_options = StaticOptions {
         tolerance_mm: options.tolerance_mm,
-        max_iterations: 200,
+        max_iterations: options.max_iterations,
+        tangent_shift: options.tangent_shift,
         ..StaticOptions::default()
     };
     let u0 = system.umbo.position(rest);
     let mut out = Vec::with_capacity(pressures.len());
     let mut current = 0.0f64;
     for &target in pressures {
-        let steps = ((target - current).abs() / options.max_step_pa).ceil().max(1.0) as usize;
+        let steps = ((target - current).abs() / options.max_step_pa)
+            .ceil()
+            .max(1.0) as usize;
         let mut iterations = 0;
         for s in 1..=steps {
             let p = current + (target - current) * s as f64 / steps as f64;

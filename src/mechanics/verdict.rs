@@ -53,7 +53,12 @@ pub struct Gate {
 }
 
 impl Gate {
-    fn band(name: impl Into<String>, value: f64, (low, high): (f64, f64), unit: &'static str) -> Self {
+    fn band(
+        name: impl Into<String>,
+        value: f64,
+        (low, high): (f64, f64),
+        unit: &'static str,
+    ) -> Self {
         Gate {
             name: name.into(),
             value,
