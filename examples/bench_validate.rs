@@ -1,5 +1,6 @@
 //! Times `otoatlas validate` on an atlas (default: the embedded one) and prints the figures:
-//! `cargo run --release --example bench_validate [-- ATLAS_DIR]`.
+//! `cargo run --release --example bench_validate [-- ATLAS_DIR [--tf-only] [--octaves]]`
+//! (`--octaves`: the TF at the six gate frequencies 250…8000 Hz only, for the fine atlas).
 
 use std::time::Instant;
 
@@ -9,7 +10,7 @@ use otoatlas::mechanics::{
 };
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let atlas = match std::env::args().nth(1) {
+    let atlas = match std::env::args().nth(1).filter(|a| !a.starts_with("--")) {
         Some(dir) => read_atlas(std::path::Path::new(&dir))?,
         None => default_atlas()?,
     };
@@ -30,7 +31,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         system.footplate_normal.as_slice()
     );
     let t1 = Instant::now();
-    let tf = transfer_function(&system, &TfaOptions::default())?;
+    let mut options = TfaOptions::default();
+    if std::env::args().any(|a| a == "--octaves") {
+        options.frequencies_hz = vec![250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0];
+    }
+    let tf = transfer_function(&system, &options)?;
     let t_tf = t1.elapsed().as_secs_f64();
     for p in &tf.points {
         println!(
@@ -43,6 +48,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tf.peak(),
         tf.points.len()
     );
+    if std::env::args().any(|a| a == "--tf-only") {
+        return Ok(());
+    }
     let t2 = Instant::now();
     let curve = static_pressure_curve(&system, &UdspOptions::default())?;
     let t_s = t2.elapsed().as_secs_f64();
