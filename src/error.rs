@@ -33,6 +33,8 @@ pub enum Error {
     Atlas(#[from] crate::atlas::AtlasError),
     #[error(transparent)]
     Phantom(#[from] crate::phantom::PhantomError),
+    #[error(transparent)]
+    Mechanics(#[from] crate::mechanics::MechanicsError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -58,6 +60,10 @@ impl Error {
             Error::Phantom(e) => match e {
                 crate::phantom::PhantomError::Anatomy { .. } => ExitStatus::CaseFailed,
                 _ => ExitStatus::BadInput,
+            },
+            Error::Mechanics(e) => match e {
+                crate::mechanics::MechanicsError::InvalidOption { .. } => ExitStatus::BadInput,
+                _ => ExitStatus::CaseFailed,
             },
             Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
         }

@@ -12,6 +12,7 @@ pub mod error;
 pub mod fem;
 pub mod image;
 pub mod io_util;
+pub mod mechanics;
 pub mod mesh;
 pub mod meshdev;
 pub mod phantom;

@@ -9,11 +9,12 @@ use std::collections::BTreeMap;
 use nalgebra::Point3;
 
 use super::materials::{
-    COCHLEAR_IMPEDANCE_PA_S_PER_M3, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
+    ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
+    DAMPING_SOURCE, MEMBRANE_POISSON, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
 };
 use super::membrane::{MembraneMesh, triangulate_eardrum};
 use super::model::{
-    Atlas, Damping, MaterialInfo, MeshPoint, Part, RegionInfo, TiedLandmarks, sets,
+    Atlas, Damping, MaterialInfo, MeshPoint, Part, RegionInfo, Supports, TiedLandmarks, sets,
 };
 use super::region::{Bone, MembraneRegion, Region};
 use super::volume::mesh_anatomy;
@@ -85,9 +86,11 @@ pub fn build_atlas(
             rayleigh_alpha_per_s: RAYLEIGH.alpha_per_s,
             rayleigh_beta_s: RAYLEIGH.beta_s,
             cochlear_impedance_pa_s_per_m3: COCHLEAR_IMPEDANCE_PA_S_PER_M3,
-            source: "Rayleigh beta: Wang, Gan et al. 2016, Biomech Model Mechanobiol 15:1263, \
-                     Table 2; cochlear impedance: Aibara et al. 2001, Hear Res 152:100"
-                .into(),
+            source: DAMPING_SOURCE.into(),
+        },
+        supports: Supports {
+            annular_ligament_stiffness_n_per_m: ANNULAR_LIGAMENT_STIFFNESS_N_PER_M,
+            source: ANNULAR_LIGAMENT_SOURCE.into(),
         },
         node_sets,
         surfaces,
@@ -135,6 +138,17 @@ fn materials() -> BTreeMap<String, MaterialInfo> {
     TABLE1
         .iter()
         .map(|(structure, rho, e)| {
+            let (poisson, poisson_source) = match structure {
+                Structure::Volume(_) => (
+                    POISSON,
+                    "Poisson's ratio: Sun, Gan et al. 2002, Biomech Model Mechanobiol 1:109",
+                ),
+                Structure::Membrane(_) => (
+                    MEMBRANE_POISSON,
+                    "Poisson's ratio and thickness: calibrated once on the atlas's transfer \
+                     function (docs/mechanics.md)",
+                ),
+            };
             let (name, source) = match structure {
                 Structure::Volume(Region::TensorTympaniTendon) => (
                     Region::TensorTympaniTendon.name(),
@@ -149,11 +163,8 @@ fn materials() -> BTreeMap<String, MaterialInfo> {
                 MaterialInfo {
                     density_kg_m3: *rho,
                     youngs_modulus_pa: *e,
-                    poisson_ratio: POISSON,
-                    source: format!(
-                        "{source}; Poisson's ratio: Sun, Gan et al. 2002, Biomech Model \
-                         Mechanobiol 1:109"
-                    ),
+                    poisson_ratio: poisson,
+                    source: format!("{source}; {poisson_source}"),
                 },
             )
         })

@@ -10,7 +10,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::model::{Atlas, Damping, MaterialInfo, MeshPoint, Part, RegionInfo, TiedLandmarks};
+use super::model::{
+    Atlas, Damping, MaterialInfo, MeshPoint, Part, RegionInfo, Supports, TiedLandmarks,
+};
 use crate::ear::{LandmarkName, Side};
 use crate::io_util::write_atomic;
 use crate::mesh::io::vtu::{VtuEncoding, parse_vtu, vtu_string};
@@ -106,6 +108,7 @@ struct Manifest {
     regions: Vec<RegionInfo>,
     materials: BTreeMap<String, MaterialInfo>,
     damping: Damping,
+    supports: Supports,
     node_sets: BTreeMap<String, Vec<u32>>,
     surfaces: BTreeMap<String, Vec<[u32; 3]>>,
     landmarks: TiedLandmarks,
@@ -201,6 +204,7 @@ fn parse_atlas(
         regions: m.regions,
         materials: m.materials,
         damping: m.damping,
+        supports: m.supports,
         node_sets: m.node_sets,
         surfaces: m.surfaces,
         landmarks: m.landmarks,
@@ -222,6 +226,7 @@ pub fn manifest_string(atlas: &Atlas) -> Result<String, AtlasError> {
         regions: atlas.regions.clone(),
         materials: atlas.materials.clone(),
         damping: atlas.damping.clone(),
+        supports: atlas.supports.clone(),
         node_sets: atlas.node_sets.clone(),
         surfaces: atlas.surfaces.clone(),
         landmarks: atlas.landmarks,

@@ -390,13 +390,16 @@ pub fn import_atlas(req: &ImportRequest<'_>) -> Result<Atlas, AtlasError> {
         "reoriented_tetrahedra".into(),
         mapped.reoriented.to_string(),
     );
+    // damping and supports are not in the source files: the default atlas's
+    let default = default_atlas()?;
     let atlas = Atlas {
         name: req.name.to_string(),
         side,
         mesh: mapped.mesh,
         regions,
         materials,
-        damping: default_atlas()?.damping,
+        damping: default.damping,
+        supports: default.supports,
         node_sets: mapped.node_sets,
         surfaces: mapped.surfaces,
         landmarks: tied,

@@ -85,6 +85,16 @@ pub struct Damping {
     pub source: String,
 }
 
+/// Elastic supports that are not meshed: the stapedial annular ligament, as isotropic
+/// zero-rest-length springs on the footplate rim nodes (SOFA RestShapeSpringsForceField),
+/// the total stiffness shared equally among them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Supports {
+    pub annular_ligament_stiffness_n_per_m: f64,
+    pub source: String,
+}
+
 /// A point tied to the mesh: barycentric coordinates in one tetrahedron, so it follows the
 /// tetrahedron's deformation (coordinates outside [0, 1] extrapolate for a point just off
 /// the surface).
@@ -198,6 +208,7 @@ pub struct Atlas {
     pub regions: Vec<RegionInfo>,
     pub materials: BTreeMap<String, MaterialInfo>,
     pub damping: Damping,
+    pub supports: Supports,
     /// Node sets for fixed or spring-anchored boundary conditions.
     pub node_sets: BTreeMap<String, Vec<u32>>,
     /// Load surfaces: triangles over the mesh nodes, oriented as their set says.

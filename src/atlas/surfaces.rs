@@ -135,13 +135,16 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
         provenance.insert(format!("{}_surface", bone.name()), name);
         provenance.insert(format!("{}_sha256", bone.name()), sha256_hex(&bytes));
     }
+    // damping and supports are not in the source files: the default atlas's
+    let default = default_atlas()?;
     let atlas = Atlas {
         name: req.name.to_string(),
         side,
         mesh: crate::mesh::io::VolumeMesh::from_tets(tets),
         regions,
         materials,
-        damping: default_atlas()?.damping,
+        damping: default.damping,
+        supports: default.supports,
         node_sets: BTreeMap::new(),
         surfaces: BTreeMap::new(),
         landmarks: tied,

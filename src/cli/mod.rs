@@ -6,6 +6,8 @@ mod inspect;
 mod landmarks;
 mod phantom;
 mod run;
+mod simulate;
+mod validate;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -37,9 +39,12 @@ pub enum Command {
     Run(run::RunArgs),
     Atlas(atlas::AtlasArgs),
     Phantom(phantom::PhantomArgs),
+    Validate(validate::ValidateArgs),
+    Simulate(simulate::SimulateArgs),
 }
 
-/// What a command hands back: text for a person, JSON for a script.
+/// What a command hands back: text for a person, JSON for a script. A JSON object with
+/// `"passed": false` (a failed verdict) makes the command exit with 1 after printing.
 pub struct Report {
     pub text: String,
     pub json: serde_json::Value,
@@ -62,6 +67,8 @@ pub fn main() -> ExitCode {
         Command::Atlas(a) => a.json,
         Command::Run(a) => a.json,
         Command::Phantom(a) => a.json,
+        Command::Validate(a) => a.json,
+        Command::Simulate(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
@@ -69,6 +76,8 @@ pub fn main() -> ExitCode {
         Command::Atlas(a) => atlas::run(a),
         Command::Run(a) => run::run(a, cli.config.as_deref()),
         Command::Phantom(a) => phantom::run(a),
+        Command::Validate(a) => validate::run(a),
+        Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(report) => {
@@ -78,7 +87,12 @@ pub fn main() -> ExitCode {
             } else {
                 print_stdout(&report.text);
             }
-            ExitCode::SUCCESS
+            // a report that carries a verdict which failed is a failed case
+            if report.json.get("passed") == Some(&serde_json::Value::Bool(false)) {
+                ExitCode::from(crate::ExitStatus::CaseFailed as u8)
+            } else {
+                ExitCode::SUCCESS
+            }
         }
         Err(err) => fail(&err, json),
     }

@@ -11,13 +11,13 @@
 //! allocation of a new matrix.)
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Point3};
 
 use super::element::CorotElement;
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
-use super::state::{CorotationalState, ElementStates};
+use super::state::{CorotationalState, ElementStates, check_positions};
 
 /// The symbolic lower-triangular pattern of a model's tangent matrix and the value slots of
 /// every element. Built once per mesh.
@@ -192,6 +192,60 @@ impl SparsePattern {
             if fixed.is_fixed(dof) {
                 sink.values[start] = 1.0;
             }
+        }
+        Ok(())
+    }
+}
+
+impl SparsePattern {
+    /// Adds `scale` times the tensile stress stiffness of the membrane triangles at positions
+    /// `x` (state already updated to `x`) to assembled `values` (fixed DOFs stay projected):
+    /// the
+    /// geometric term K_σ,ab = w·g_aᵀσ⁺g_b·I₃ that the warped tangent lacks, which carries a
+    /// tensioned membrane's out-of-plane stiffness (Bonet & Wood, "Nonlinear continuum
+    /// mechanics for finite element analysis", initial-stress matrix).
+    pub fn add_membrane_stress_stiffness(
+        &self,
+        model: &FemModel,
+        x: &[Point3<f64>],
+        state: &CorotationalState,
+        scale: f64,
+        fixed: &FixedDofs,
+        values: &mut [f64],
+    ) -> Result<(), FemError> {
+        state.check_model(model)?;
+        check_positions(model, x)?;
+        if values.len() != self.nnz() || fixed.len() != self.dof_count() {
+            return Err(FemError::LengthMismatch {
+                what: "value buffer or fixed DOF mask",
+                expected: self.nnz(),
+                found: values.len(),
+            });
+        }
+        let mut sink = Sink {
+            col_ptr: self.symbolic.col_ptr(),
+            fixed,
+            values,
+        };
+        for ((e, r), ranks) in model
+            .membranes
+            .iter()
+            .zip(&state.membranes.rotations)
+            .zip(self.membrane_ranks.chunks_exact(3))
+        {
+            let f = e.deformation(x);
+            let mut pair = 0;
+            e.tensile_stress_stiffness(r, &f, |a, b, k| {
+                let blk = Matrix3::identity() * (k * scale);
+                let (p, q) = (e.nodes[a] as usize, e.nodes[b] as usize);
+                if a == b {
+                    sink.add_diagonal(p, &blk);
+                } else {
+                    let rank = ranks[pair] as usize;
+                    pair += 1;
+                    sink.add_off_diagonal(p.max(q), p.min(q), rank, &blk);
+                }
+            });
         }
         Ok(())
     }

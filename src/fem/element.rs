@@ -14,6 +14,53 @@ use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::material::Lame;
 
+/// The tensile part σ⁺ = Σ max(λ_i, 0) v_i v_iᵀ of a symmetric stress. For a membrane
+/// (`normal` ≠ 0) σ lies in the plane ⟂ normal and its 2×2 eigenproblem is solved in closed
+/// form; otherwise by a 3×3 symmetric eigendecomposition.
+fn tensile_part(sigma: &Matrix3<f64>, normal: &Vector3<f64>) -> Matrix3<f64> {
+    let Some(n) = normal.try_normalize(1e-12) else {
+        let eig = sigma.symmetric_eigen();
+        let mut out = Matrix3::zeros();
+        for (k, &value) in eig.eigenvalues.iter().enumerate() {
+            if value > 0.0 {
+                let v = eig.eigenvectors.column(k);
+                out += v * v.transpose() * value;
+            }
+        }
+        return out;
+    };
+    let helper = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let t1 = n.cross(&helper).normalize();
+    let t2 = n.cross(&t1);
+    let (a, b, c) = (
+        t1.dot(&(sigma * t1)),
+        t1.dot(&(sigma * t2)),
+        t2.dot(&(sigma * t2)),
+    );
+    let mean = 0.5 * (a + c);
+    let radius = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (l1, l2) = (mean + radius, mean - radius);
+    // eigenvector of l1 in the (t1, t2) basis
+    let (x, y) = if radius <= 1e-300 {
+        (1.0, 0.0)
+    } else if (a - c) >= 0.0 {
+        let v = Vector3::new(a - l2, b, 0.0);
+        let norm = (v.x * v.x + v.y * v.y).sqrt();
+        (v.x / norm, v.y / norm)
+    } else {
+        let v = Vector3::new(b, l1 - a, 0.0);
+        let norm = (v.x * v.x + v.y * v.y).sqrt();
+        (v.x / norm, v.y / norm)
+    };
+    let v1 = t1 * x + t2 * y;
+    let v2 = n.cross(&v1);
+    v1 * v1.transpose() * l1.max(0.0) + v2 * v2.transpose() * l2.max(0.0)
+}
+
 /// Rest data of one corotated constant-strain element with `N` nodes.
 #[derive(Debug, Clone)]
 pub(crate) struct CorotElement<const N: usize> {
@@ -40,12 +87,36 @@ impl<const N: usize> CorotElement<N> {
 
     /// Corotated elastic nodal forces (µN) for rotation `r` and deformation gradient `f`.
     pub fn forces(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> [Vector3<f64>; N] {
+        let rs = r * self.stress(r, f) * (-self.measure);
+        self.grads.map(|g| rs * g)
+    }
+
+    /// Corotated small-strain stress σ (Pa) in the rest frame: H = RᵀF − P,
+    /// ε = P sym(H) P, σ = λ tr(ε) P + 2μ ε.
+    pub fn stress(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
         let p = self.projector();
         let h = r.transpose() * f - p;
         let eps = p * (h + h.transpose()) * p * 0.5;
-        let sigma = p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu);
-        let rs = r * sigma * (-self.measure);
-        self.grads.map(|g| rs * g)
+        p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+    }
+
+    /// Visits the stress (initial-stress, geometric) stiffness of the element for every local
+    /// pair a ≤ b as the scalar w·g_aᵀ σ⁺ g_b (the block is that times I₃), with σ⁺ the
+    /// tensile part of σ (negative principal stresses dropped, so the term is positive
+    /// semi-definite: a membrane has no stiffness in compression, it wrinkles).
+    pub fn tensile_stress_stiffness(
+        &self,
+        r: &Matrix3<f64>,
+        f: &Matrix3<f64>,
+        mut visit: impl FnMut(usize, usize, f64),
+    ) {
+        let tension = tensile_part(&self.stress(r, f), &self.rest_normal);
+        for a in 0..N {
+            let ta = tension * self.grads[a];
+            for b in a..N {
+                visit(a, b, self.measure * ta.dot(&self.grads[b]));
+            }
+        }
     }
 
     /// Visits the warped stiffness blocks R K_ab Rᵀ (µN/mm, rows of node a, columns of node
@@ -82,5 +153,30 @@ impl<const N: usize> CorotElement<N> {
             }
         });
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed-form in-plane split equals the 3×3 eigendecomposition.
+    #[test]
+    fn tensile_part_of_a_membrane_stress_matches_the_eigendecomposition() {
+        let n = Vector3::new(0.3, -0.5, 0.8).normalize();
+        let p = Matrix3::identity() - n * n.transpose();
+        for raw in [
+            Matrix3::new(2.0, 0.5, -1.0, 0.5, -3.0, 0.7, -1.0, 0.7, 1.0),
+            Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+            Matrix3::new(-1.0, 0.2, 0.0, 0.2, -2.0, 0.1, 0.0, 0.1, -0.5),
+        ] {
+            let sigma = p * (raw + raw.transpose()) * p * 0.5;
+            let closed = tensile_part(&sigma, &n);
+            let general = tensile_part(&sigma, &Vector3::zeros());
+            assert!(
+                (closed - general).norm() < 1e-12 * (1.0 + sigma.norm()),
+                "{sigma}"
+            );
+        }
     }
 }

@@ -75,6 +75,15 @@ pub enum FemError {
         max_update: f64,
         tolerance: f64,
     },
+    #[error(
+        "preconditioned conjugate gradients: relative residual {residual:e} > tolerance \
+         {tolerance:e} after {iterations} iterations"
+    )]
+    IterativeNotConverged {
+        iterations: usize,
+        residual: f64,
+        tolerance: f64,
+    },
     #[error("{what} refers to node {node}, out of range (the model has {n_nodes} nodes)")]
     BadNodeReference {
         what: &'static str,

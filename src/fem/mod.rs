@@ -2,7 +2,8 @@
 //! TetrahedronFEMForceField method="polar") and corotational CST membrane triangles, lumped
 //! masses, sparse assembly with a pattern built once per mesh, a sparse Cholesky whose symbolic
 //! analysis is reused, a quasi-static spring-equilibrium solver and a linearised implicit
-//! Euler step. Formulas: mechanics-metrics §4 in the project's shared notes.
+//! Euler step, a follower pressure load and a complex harmonic (frequency-domain) solver.
+//! Formulas: mechanics-metrics §4 in the project's shared notes.
 //!
 //! Units (mm-g-s): positions in mm, forces in µN, stiffness in µN/mm, Young's modulus and
 //! stress in Pa (= µN/mm²), density in g/mm³, mass in g, time in s. Degrees of freedom are
@@ -15,9 +16,12 @@ mod dynamics;
 mod element;
 mod error;
 mod fixed;
+mod harmonic;
 mod material;
 mod membrane;
 mod model;
+mod pcg;
+mod pressure;
 mod rotation;
 mod state;
 mod statics;
@@ -28,7 +32,10 @@ pub use cholesky::SparseCholesky;
 pub use dynamics::{ImplicitEuler, Rayleigh, StepReport};
 pub use error::{ElementId, FemError};
 pub use fixed::FixedDofs;
+pub use harmonic::{ComplexDisplacement, HarmonicSolver};
 pub use material::{MembraneMaterial, TetMaterial};
 pub use model::{Elements, FemModel, MembraneElements, TetElements};
+pub use pcg::Pcg;
+pub use pressure::PressureLoad;
 pub use state::CorotationalState;
 pub use statics::{Spring, StaticLoads, StaticOptions, StaticReport, StaticSolver};

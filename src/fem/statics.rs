@@ -17,6 +17,7 @@ use super::cholesky::SparseCholesky;
 use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
+use super::pressure::PressureLoad;
 use super::state::CorotationalState;
 
 /// A zero-rest-length spring pulling `node` towards `target` (mm) with `stiffness` (µN/mm):
@@ -144,6 +145,33 @@ impl<'m> StaticSolver<'m> {
         loads: &StaticLoads<'_>,
         options: &StaticOptions,
     ) -> Result<StaticReport, FemError> {
+        self.solve_impl(x, loads, None, options)
+    }
+
+    /// As [`StaticSolver::solve`], plus a follower `pressure` re-evaluated at every iterate.
+    /// The tangent adds the membranes' tensile stress stiffness (a pressurised membrane's
+    /// out-of-plane stiffness; `SparsePattern::add_membrane_stress_stiffness`). The load's own
+    /// stiffness (non-symmetric, of order p·L, mechanics-metrics §4.4) is left out
+    /// of the tangent, so the iteration is a modified Newton that converges linearly at the
+    /// rate (load stiffness)/(structural stiffness); the equilibrium it reaches is exact.
+    pub fn solve_with_pressure(
+        &mut self,
+        x: &mut [Point3<f64>],
+        loads: &StaticLoads<'_>,
+        pressure: &PressureLoad<'_>,
+        options: &StaticOptions,
+    ) -> Result<StaticReport, FemError> {
+        pressure.check(self.model.node_count())?;
+        self.solve_impl(x, loads, Some(pressure), options)
+    }
+
+    fn solve_impl(
+        &mut self,
+        x: &mut [Point3<f64>],
+        loads: &StaticLoads<'_>,
+        pressure: Option<&PressureLoad<'_>>,
+        options: &StaticOptions,
+    ) -> Result<StaticReport, FemError> {
         self.check(loads, options)?;
         self.tangent_diagonal.fill(options.tangent_shift);
         for s in loads.springs {
@@ -159,7 +187,7 @@ impl<'m> StaticSolver<'m> {
         let mut halvings = 0;
         let mut max_update = f64::INFINITY;
         for iteration in 1..=options.max_iterations {
-            self.residual(x, loads)?;
+            self.residual(x, loads, pressure)?;
             self.pattern.assemble(
                 self.model,
                 &self.state,
@@ -168,13 +196,23 @@ impl<'m> StaticSolver<'m> {
                 &self.fixed,
                 &mut self.values,
             )?;
+            if pressure.is_some() {
+                self.pattern.add_membrane_stress_stiffness(
+                    self.model,
+                    x,
+                    &self.state,
+                    1.0,
+                    &self.fixed,
+                    &mut self.values,
+                )?;
+            }
             self.cholesky.factorise(self.pattern.matrix(&self.values))?;
             self.cholesky.solve_in_place(&mut self.rhs)?;
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
             halvings += h;
             max_update = step;
             if h == 0 && max_update < options.tolerance_mm {
-                self.residual(x, loads)?;
+                self.residual(x, loads, pressure)?;
                 let max_residual = self
                     .rhs
                     .chunks_exact(3)
@@ -242,7 +280,12 @@ impl<'m> StaticSolver<'m> {
 
     /// Writes the out-of-balance force at `x` (state already updated to `x`) into `rhs`,
     /// zero on fixed DOFs.
-    fn residual(&mut self, x: &[Point3<f64>], loads: &StaticLoads<'_>) -> Result<(), FemError> {
+    fn residual(
+        &mut self,
+        x: &[Point3<f64>],
+        loads: &StaticLoads<'_>,
+        pressure: Option<&PressureLoad<'_>>,
+    ) -> Result<(), FemError> {
         self.forces.fill(Vector3::zeros());
         self.state
             .add_elastic_forces(self.model, &mut self.forces)?;
@@ -252,6 +295,9 @@ impl<'m> StaticSolver<'m> {
         }
         if let Some(f) = loads.nodal_forces {
             self.forces.iter_mut().zip(f).for_each(|(a, b)| *a += b);
+        }
+        if let Some(p) = pressure {
+            p.add_forces(x, &mut self.forces);
         }
         for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
             r.copy_from_slice(f.as_slice());

@@ -1,0 +1,134 @@
+//! `otoatlas validate`: the mechanical checks (UDSP, TFA) of an atlas against the literature
+//! bands, or of a registered atlas against the atlas it came from; exit code 1 when a gate
+//! fails.
+
+use std::fmt::Write;
+use std::path::PathBuf;
+
+use clap::Args;
+
+use super::Report;
+use crate::Error;
+use crate::atlas::load_atlas;
+use crate::mechanics::plots::validation_plots;
+use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_package};
+
+/// Validate the mechanics of an atlas: umbo displacement under static pressure (UDSP) and the
+/// stapes velocity transfer function (TFA), with verdicts.
+#[derive(Debug, Args)]
+#[command(after_help = "Examples:
+  otoatlas validate                                  # the embedded atlas, literature gates
+  otoatlas validate --atlas patient-atlas --reference default --plots out/
+  otoatlas validate --drive umbo --json
+
+Exit codes: 0 every gate passed, 1 a gate failed (the report says which), 2 bad input.")]
+pub struct ValidateArgs {
+    /// The atlas folder to validate; default: the embedded atlas.
+    #[arg(long, value_name = "DIR")]
+    pub atlas: Option<PathBuf>,
+    /// Validate `--atlas` as a package of this atlas ("default" = the embedded one): same
+    /// mesh, registered node positions; gates relative to the reference.
+    #[arg(long, value_name = "DIR")]
+    pub reference: Option<PathBuf>,
+    /// Where the sound drives the ear.
+    #[arg(long, value_enum, default_value_t = Drive::Eardrum)]
+    pub drive: Drive,
+    /// Write tf_magnitude.svg, tf_phase.svg and udsp.svg into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+    /// Print machine-readable JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
+    let atlas = load_atlas(args.atlas.as_deref(), None)?;
+    let mut options = ValidationOptions::default();
+    options.tfa.drive = args.drive;
+    let validation = match &args.reference {
+        None => validate_atlas(&atlas, &options)?,
+        Some(r) => {
+            let dir = (r.as_os_str() != "default").then_some(r.as_path());
+            let reference = load_atlas(dir, None)?;
+            let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
+                && reference.mesh.triangles == atlas.mesh.triangles;
+            if !same {
+                return Err(Error::Usage(
+                    "--atlas and --reference must share one mesh (a package is its atlas with \
+                     moved nodes)"
+                        .into(),
+                ));
+            }
+            validate_package(&reference, atlas.nodes(), &options)?
+        }
+    };
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        for (name, svg) in validation_plots(&validation)? {
+            let path = dir.join(name);
+            crate::io_util::write_atomic(&path, svg.as_bytes())?;
+        }
+    }
+    let m = &validation.mechanics;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "transfer function (stapes piston velocity / {:?} drive of {} Pa):",
+        m.transfer_function.drive, m.transfer_function.drive_pa
+    );
+    for p in &m.transfer_function.points {
+        let _ = writeln!(
+            text,
+            "  {:7.0} Hz  {:9.2} um/s/Pa  {:7.1} deg",
+            p.frequency_hz, p.magnitude_um_s_per_pa, p.phase_deg
+        );
+    }
+    if let Some((f, h)) = m.transfer_function.peak() {
+        let _ = writeln!(text, "  maximum {h:.2} um/s/Pa at {f:.0} Hz");
+    }
+    let _ = writeln!(
+        text,
+        "umbo displacement under static pressure (p = ear canal - middle ear; + = medial):"
+    );
+    for p in &m.udsp.points {
+        let _ = writeln!(
+            text,
+            "  {:6.0} Pa  {:9.2} um",
+            p.pressure_pa,
+            p.umbo_mm * 1e3
+        );
+    }
+    if let Some(a) = m.udsp.asymmetry() {
+        let _ = writeln!(text, "  asymmetry |u(-4 kPa)|/|u(+4 kPa)| = {a:.3}");
+    }
+    let _ = writeln!(
+        text,
+        "timing: TFA {:.2} s, UDSP {:.2} s",
+        m.tfa_seconds, m.udsp_seconds
+    );
+    let v = &validation.verdict;
+    let _ = writeln!(text, "verdict ({} gates):", v.kind);
+    for g in &v.gates {
+        let _ = writeln!(
+            text,
+            "  {} {:45} {:10.3} {} in [{}, {}]",
+            if g.passed { "PASS" } else { "FAIL" },
+            g.name,
+            g.value,
+            g.unit,
+            g.low,
+            g.high
+        );
+    }
+    let _ = writeln!(text, "{}", if v.passed { "PASSED" } else { "FAILED" });
+    let json = serde_json::json!({
+        "passed": v.passed,
+        "verdict": v,
+        "mechanics": m,
+        "reference": validation.reference,
+    });
+    Ok(Report { text, json })
+}

@@ -1,0 +1,235 @@
+//! Steady-state harmonic response of the model linearised about its rest shape: the complex
+//! frequency-domain system (mechanics-metrics §1.1)
+//!
+//! [K (1 + iωβ) + iω (α M + C) − ω² M] û = F̂,
+//!
+//! with K the rest stiffness (elements plus node springs), M the lumped masses, C a diagonal
+//! of nodal dashpots (g/s) and Rayleigh α, β as SOFA applies them (to the whole stiffness,
+//! springs included). The matrix is complex symmetric, not Hermitian, so it is factorised by
+//! faer's sparse LU (partial pivoting; COLAMD ordering and symbolic analysis done once per
+//! model and reused at every frequency). Fixed DOFs are removed from the system (û = 0 there).
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
+use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::{Conj, MatMut, Par, c64};
+use nalgebra::Vector3;
+
+use super::assembly::SparsePattern;
+use super::dynamics::Rayleigh;
+use super::error::FemError;
+use super::fixed::FixedDofs;
+use super::model::FemModel;
+use super::state::CorotationalState;
+
+/// Complex amplitude of one node's displacement (mm), x, y, z.
+pub type ComplexDisplacement = [c64; 3];
+
+/// Harmonic solver for one model, one set of fixed DOFs and one set of node springs and
+/// dashpots; immutable after construction, so frequencies can be solved in parallel.
+#[derive(Debug)]
+pub struct HarmonicSolver {
+    node_count: usize,
+    /// Reduced index → DOF.
+    free: Vec<usize>,
+    /// The full (both triangles) reduced pattern with the real stiffness values.
+    stiffness: SparseColMat<usize, f64>,
+    /// Position of each reduced DOF's diagonal in the values.
+    diagonal: Vec<usize>,
+    /// Lumped mass (g) and dashpot (g/s) of each reduced DOF.
+    mass: Vec<f64>,
+    dashpot: Vec<f64>,
+    rayleigh: Rayleigh,
+    symbolic: SymbolicLu<usize>,
+}
+
+fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
+    FemError::Factorisation {
+        message: format!("{stage}: {e:?}"),
+    }
+}
+
+impl HarmonicSolver {
+    /// The solver of `model` with `fixed` DOFs, isotropic node springs `node_stiffness`
+    /// (µN/mm, one per node) and isotropic node dashpots `node_dashpot` (g/s, one per node).
+    pub fn new(
+        model: &FemModel,
+        fixed: &FixedDofs,
+        node_stiffness: &[f64],
+        node_dashpot: &[f64],
+        rayleigh: Rayleigh,
+    ) -> Result<Self, FemError> {
+        let n = model.node_count();
+        for (what, expected, found) in [
+            ("fixed DOF mask", 3 * n, fixed.len()),
+            ("node stiffness", n, node_stiffness.len()),
+            ("node dashpots", n, node_dashpot.len()),
+        ] {
+            if expected != found {
+                return Err(FemError::LengthMismatch {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        for (what, v) in node_stiffness
+            .iter()
+            .map(|v| ("node stiffness (µN/mm)", *v))
+            .chain(node_dashpot.iter().map(|v| ("node dashpot (g/s)", *v)))
+            .chain([
+                ("rayleigh mass", rayleigh.mass),
+                ("rayleigh stiffness", rayleigh.stiffness),
+            ])
+        {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(FemError::InvalidParameter {
+                    what,
+                    value: v,
+                    expected: "finite and >= 0",
+                });
+            }
+        }
+        let pattern = SparsePattern::new(model);
+        let mut state = CorotationalState::new(model);
+        state.update(model, model.rest_positions())?;
+        let mut lower = pattern.zero_values();
+        let none_fixed = FixedDofs::from_nodes(n, &[])?;
+        pattern.assemble(
+            model,
+            &state,
+            1.0,
+            Some(node_stiffness),
+            &none_fixed,
+            &mut lower,
+        )?;
+        let free: Vec<usize> = (0..3 * n).filter(|&d| !fixed.is_fixed(d)).collect();
+        let mut reduced = vec![usize::MAX; 3 * n];
+        for (r, &d) in free.iter().enumerate() {
+            reduced[d] = r;
+        }
+        let sym = pattern.symbolic();
+        let mut triplets = Vec::with_capacity(2 * lower.len());
+        for col in 0..3 * n {
+            let rc = reduced[col];
+            if rc == usize::MAX {
+                continue;
+            }
+            for k in sym.col_ptr()[col]..sym.col_ptr()[col + 1] {
+                let rr = reduced[sym.row_idx()[k]];
+                if rr == usize::MAX {
+                    continue;
+                }
+                triplets.push(Triplet::new(rr, rc, lower[k]));
+                if rr != rc {
+                    triplets.push(Triplet::new(rc, rr, lower[k]));
+                }
+            }
+        }
+        let m = free.len();
+        let stiffness = SparseColMat::try_new_from_triplets(m, m, &triplets)
+            .map_err(|e| faer_error("harmonic pattern", e))?;
+        let s = stiffness.symbolic();
+        let diagonal = (0..m)
+            .map(|c| {
+                let rows = &s.row_idx()[s.col_ptr()[c]..s.col_ptr()[c + 1]];
+                // every DOF has its diagonal block in the pattern
+                s.col_ptr()[c] + rows.partition_point(|&r| r < c)
+            })
+            .collect();
+        let masses = model.lumped_masses();
+        let mass = free.iter().map(|&d| masses[d / 3]).collect();
+        let dashpot = free.iter().map(|&d| node_dashpot[d / 3]).collect();
+        let symbolic = factorize_symbolic_lu(s, Default::default())
+            .map_err(|e| faer_error("harmonic symbolic LU", e))?;
+        Ok(HarmonicSolver {
+            node_count: n,
+            free,
+            stiffness,
+            diagonal,
+            mass,
+            dashpot,
+            rayleigh,
+            symbolic,
+        })
+    }
+
+    /// Number of unknowns (free DOFs).
+    pub fn unknowns(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Displacement amplitudes (mm, per node; zero on fixed DOFs) at angular frequency
+    /// `omega` (rad/s) under real nodal force amplitudes `force` (µN, one per node).
+    pub fn solve(
+        &self,
+        omega: f64,
+        force: &[Vector3<f64>],
+    ) -> Result<Vec<ComplexDisplacement>, FemError> {
+        if force.len() != self.node_count {
+            return Err(FemError::LengthMismatch {
+                what: "harmonic force",
+                expected: self.node_count,
+                found: force.len(),
+            });
+        }
+        if !(omega.is_finite() && omega >= 0.0) {
+            return Err(FemError::InvalidParameter {
+                what: "angular frequency (rad/s)",
+                value: omega,
+                expected: "finite and >= 0",
+            });
+        }
+        let beta = self.rayleigh.stiffness;
+        let mut values: Vec<c64> = self
+            .stiffness
+            .val()
+            .iter()
+            .map(|&k| c64::new(k, omega * beta * k))
+            .collect();
+        for ((&p, &m), &c) in self.diagonal.iter().zip(&self.mass).zip(&self.dashpot) {
+            values[p] += c64::new(-omega * omega * m, omega * (self.rayleigh.mass * m + c));
+        }
+        let par = Par::Seq;
+        let mut mem = MemBuffer::new(StackReq::any_of(&[
+            self.symbolic
+                .factorize_numeric_lu_scratch::<c64>(par, Default::default()),
+            self.symbolic.solve_in_place_scratch::<c64>(1, par),
+        ]));
+        let mut numeric = NumericLu::<usize, c64>::new();
+        let matrix = SparseColMatRef::new(self.stiffness.symbolic(), &values);
+        let lu = self
+            .symbolic
+            .factorize_numeric_lu(
+                &mut numeric,
+                matrix,
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .map_err(|e| faer_error("harmonic numeric LU", e))?;
+        let mut rhs: Vec<c64> = self
+            .free
+            .iter()
+            .map(|&d| c64::new(force[d / 3][d % 3], 0.0))
+            .collect();
+        let m = rhs.len();
+        lu.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut rhs, m, 1),
+            par,
+            MemStack::new(&mut mem),
+        );
+        let mut out = vec![[c64::new(0.0, 0.0); 3]; self.node_count];
+        for (&d, u) in self.free.iter().zip(&rhs) {
+            if !(u.re.is_finite() && u.im.is_finite()) {
+                return Err(FemError::NonFinite {
+                    what: "harmonic displacement of DOF",
+                    index: d,
+                });
+            }
+            out[d / 3][d % 3] = *u;
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,238 @@
+//! The mechanical system of an atlas at given node positions: the FEM model with the atlas's
+//! materials, its boundary conditions, loads and the points and axes the checks measure.
+//!
+//! Boundary conditions (the choice, stated once):
+//! - the tympanic annulus and the wall end (`anchor:<ligament>`) of every ligament and tendon
+//!   are **fixed** (all three DOFs): they sit in bone, which is rigid at these loads
+//!   (SOFA FixedProjectiveConstraint, mechanics-metrics §2.5);
+//! - the stapedial annular ligament is **elastic**: isotropic zero-rest-length springs on the
+//!   footplate rim nodes, the atlas's total stiffness shared equally (SOFA
+//!   RestShapeSpringsForceField); fixing it would immobilise the stapes;
+//! - the cochlear load is a dashpot Z_c·A² (A the area of the medial footplate face, Z_c the
+//!   atlas's cochlear input impedance), spread over the footplate nodes in proportion to their
+//!   area and acting on all three DOFs of each (SOFA DiagonalVelocityDampingForceField).
+//!
+//! Axes, built from the mesh so that they move with it (a rigidly moved atlas measures the
+//! same): `medial` = minus the area-weighted mean normal of the lateral eardrum face;
+//! `footplate_normal` = the area-weighted mean normal of the medial footplate face (into the
+//! vestibule). Units mm-g-s (µN, Pa).
+
+use nalgebra::{Point3, Vector3};
+
+use super::error::MechanicsError;
+use crate::atlas::materials::cochlear_damping_for;
+use crate::atlas::model::{Atlas, sets};
+use crate::fem::{FemModel, FixedDofs, Rayleigh, Spring};
+
+/// 1 N/m in µN/mm.
+const N_PER_M_TO_UN_PER_MM: f64 = 1e3;
+
+/// A point on the mesh: four nodes and their barycentric weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TiedPoint {
+    pub nodes: [u32; 4],
+    pub weights: [f64; 4],
+}
+
+impl TiedPoint {
+    /// The point with the nodes at `x`.
+    pub fn position(&self, x: &[Point3<f64>]) -> Point3<f64> {
+        Point3::from(
+            self.nodes
+                .iter()
+                .zip(&self.weights)
+                .map(|(&v, &w)| x[v as usize].coords * w)
+                .sum::<Vector3<f64>>(),
+        )
+    }
+}
+
+/// The atlas as a mechanical system at one set of node positions.
+#[derive(Debug, Clone)]
+pub struct MechanicalSystem {
+    pub model: FemModel,
+    pub fixed: FixedDofs,
+    /// Annular ligament springs (zero rest length, anchored at the rest positions).
+    pub springs: Vec<Spring>,
+    /// Spring stiffness per node (µN/mm), zero off the footplate rim.
+    pub node_stiffness: Vec<f64>,
+    /// Cochlear dashpot per node (g/s), zero off the footplate.
+    pub node_dashpot: Vec<f64>,
+    pub rayleigh: Rayleigh,
+    /// The eardrum's lateral face (normals toward the ear canal).
+    pub eardrum: Vec<[u32; 3]>,
+    /// Nodes of the medial footplate face with their area weights (summing to 1).
+    pub footplate: Vec<(u32, f64)>,
+    /// Unit normal of the footplate, into the vestibule.
+    pub footplate_normal: Vector3<f64>,
+    /// Unit medial axis (ear canal → middle ear).
+    pub medial: Vector3<f64>,
+    pub umbo: TiedPoint,
+    /// Area of the lateral eardrum face (mm²) and of the medial footplate face (mm²).
+    pub eardrum_area_mm2: f64,
+    pub footplate_area_mm2: f64,
+}
+
+fn set<'a, T>(
+    map: &'a std::collections::BTreeMap<String, Vec<T>>,
+    kind: &'static str,
+    name: &str,
+    purpose: &'static str,
+) -> Result<&'a [T], MechanicsError> {
+    match map.get(name) {
+        Some(v) if !v.is_empty() => Ok(v),
+        _ => Err(MechanicsError::MissingSet {
+            kind,
+            name: name.to_string(),
+            purpose,
+        }),
+    }
+}
+
+/// Area-weighted normal sum (not normalised) and total area of `triangles` at `x`.
+fn weighted_normal(triangles: &[[u32; 3]], x: &[Point3<f64>]) -> (Vector3<f64>, f64) {
+    triangles.iter().fold((Vector3::zeros(), 0.0), |(n, a), t| {
+        let [p, q, r] = t.map(|v| x[v as usize]);
+        let c = (q - p).cross(&(r - p));
+        (n + c * 0.5, a + 0.5 * c.norm())
+    })
+}
+
+impl MechanicalSystem {
+    /// The mechanical system of `atlas` with its rest shape at `nodes` (the atlas's own
+    /// positions, or a package's registered ones).
+    pub fn new(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<Self, MechanicsError> {
+        let n = nodes.len();
+        if n != atlas.nodes().len() {
+            return Err(MechanicsError::BadAtlas {
+                what: format!(
+                    "{} node positions given for an atlas of {} nodes",
+                    n,
+                    atlas.nodes().len()
+                ),
+            });
+        }
+        let model = atlas
+            .fem_model(nodes, None, true)
+            .map_err(MechanicsError::solve("building the FEM model"))?;
+        let mut fixed_nodes: Vec<u32> = set(
+            &atlas.node_sets,
+            "node set",
+            sets::TYMPANIC_ANNULUS,
+            "fixed eardrum rim",
+        )?
+        .to_vec();
+        for (name, nodes) in &atlas.node_sets {
+            if name.starts_with(sets::ANCHOR_PREFIX) {
+                fixed_nodes.extend_from_slice(nodes);
+            }
+        }
+        let fixed = FixedDofs::from_nodes(n, &fixed_nodes)
+            .map_err(MechanicsError::solve("fixed boundary nodes"))?;
+        let rim = set(
+            &atlas.node_sets,
+            "node set",
+            sets::ANNULAR_LIGAMENT,
+            "annular ligament springs",
+        )?;
+        let k_total = atlas.supports.annular_ligament_stiffness_n_per_m * N_PER_M_TO_UN_PER_MM;
+        if !(k_total.is_finite() && k_total >= 0.0) {
+            return Err(MechanicsError::BadAtlas {
+                what: format!(
+                    "annular ligament stiffness {} N/m: expected finite and >= 0",
+                    atlas.supports.annular_ligament_stiffness_n_per_m
+                ),
+            });
+        }
+        let mut node_stiffness = vec![0.0; n];
+        let springs: Vec<Spring> = rim
+            .iter()
+            .map(|&v| {
+                let k = k_total / rim.len() as f64;
+                if let Some(s) = node_stiffness.get_mut(v as usize) {
+                    *s += k;
+                }
+                Spring {
+                    node: v,
+                    target: nodes.get(v as usize).copied().unwrap_or_default(),
+                    stiffness: k,
+                }
+            })
+            .collect();
+        let eardrum = set(
+            &atlas.surfaces,
+            "surface",
+            sets::EARDRUM_LATERAL,
+            "sound and static pressure",
+        )?
+        .to_vec();
+        let footplate_tris = set(
+            &atlas.surfaces,
+            "surface",
+            sets::FOOTPLATE_MEDIAL,
+            "cochlear load and stapes velocity",
+        )?;
+        for t in eardrum.iter().chain(footplate_tris) {
+            if t.iter().any(|&v| v as usize >= n) {
+                return Err(MechanicsError::BadAtlas {
+                    what: format!("a load surface triangle {t:?} refers to a node >= {n}"),
+                });
+            }
+        }
+        let (drum_normal, eardrum_area) = weighted_normal(&eardrum, nodes);
+        let (fp_normal, fp_area) = weighted_normal(footplate_tris, nodes);
+        let (medial, footplate_normal) = match (
+            (-drum_normal).try_normalize(1e-12),
+            fp_normal.try_normalize(1e-12),
+        ) {
+            (Some(m), Some(f)) => (m, f),
+            _ => {
+                return Err(MechanicsError::BadAtlas {
+                    what: "the eardrum or footplate surface has no mean normal".into(),
+                });
+            }
+        };
+        let mut weight = vec![0.0; n];
+        for t in footplate_tris {
+            let [p, q, r] = t.map(|v| nodes[v as usize]);
+            let a = 0.5 * (q - p).cross(&(r - p)).norm();
+            t.iter()
+                .for_each(|&v| weight[v as usize] += a / (3.0 * fp_area));
+        }
+        let footplate: Vec<(u32, f64)> = weight
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(v, w)| (v as u32, *w))
+            .collect();
+        let c_total = cochlear_damping_for(atlas.damping.cochlear_impedance_pa_s_per_m3, fp_area);
+        let node_dashpot = weight.iter().map(|w| w * c_total).collect();
+        let tied = atlas.landmarks.umbo;
+        let cell = atlas.mesh.tets.tets.get(tied.tet as usize).ok_or_else(|| {
+            MechanicsError::BadAtlas {
+                what: format!("the umbo is tied to tetrahedron {}, out of range", tied.tet),
+            }
+        })?;
+        Ok(MechanicalSystem {
+            model,
+            fixed,
+            springs,
+            node_stiffness,
+            node_dashpot,
+            rayleigh: Rayleigh {
+                mass: atlas.damping.rayleigh_alpha_per_s,
+                stiffness: atlas.damping.rayleigh_beta_s,
+            },
+            eardrum,
+            footplate,
+            footplate_normal,
+            medial,
+            umbo: TiedPoint {
+                nodes: *cell,
+                weights: tied.barycentric,
+            },
+            eardrum_area_mm2: eardrum_area,
+            footplate_area_mm2: fp_area,
+        })
+    }
+}

@@ -1,0 +1,24 @@
+//! Mechanical validation and simulation of an atlas (or of a package: the atlas with
+//! registered node positions): umbo displacement under static pressure (UDSP), the stapes
+//! velocity transfer function (TFA), their verdicts against literature bands and against a
+//! reference atlas, and real-time implicit time stepping. Facts, bands and formulas:
+//! mechanics-metrics §0.1, §1, §2, §4 in the project's shared notes; method and figures in
+//! `docs/mechanics.md`.
+
+pub mod boundary;
+pub mod error;
+pub mod plots;
+pub mod simulate;
+pub mod tfa;
+pub mod udsp;
+pub mod validate;
+pub mod verdict;
+
+pub use boundary::{MechanicalSystem, TiedPoint};
+pub use error::MechanicsError;
+pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
+pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};
+pub use validate::{
+    Mechanics, Validation, ValidationOptions, mechanics, validate_atlas, validate_package,
+};
+pub use verdict::{Gate, Verdict, literature_verdict, relative_verdict};

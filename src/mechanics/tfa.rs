@@ -1,0 +1,235 @@
+//! Transfer function analysis (TFA): the stapes velocity transfer function
+//! H_V(f) = V_stapes / P_TM (ASTM F2504; mechanics-metrics §1.1) from harmonic solves
+//! linearised about the rest shape,
+//! [K(1 + iωβ) + iω(αM + C_cochlea) − ω²M] û = F̂.
+//!
+//! Drive: a uniform pressure on the lateral eardrum face (default 0.632 Pa rms = 90 dB SPL, as
+//! the source study), or the equivalent force (pressure × eardrum area) on the umbo along the
+//! medial axis ("malleus drive"). V_stapes is the piston velocity: the area-weighted mean over
+//! the medial footplate face of iω û·n_fp, n_fp into the vestibule. Magnitude in µm/s per Pa
+//! of drive, phase in degrees (unwrapped from the lowest frequency; +90° = velocity leads the
+//! pressure, the stiffness-controlled regime).
+
+use faer::c64;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::boundary::MechanicalSystem;
+use super::error::MechanicsError;
+use crate::fem::{HarmonicSolver, PressureLoad};
+
+/// The source study's sound pressure: 90 dB SPL re 20 µPa, in Pa rms.
+pub const DRIVE_PA: f64 = 0.632;
+
+/// Where the sound drives the middle ear.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Drive {
+    /// Pressure on the lateral face of the eardrum.
+    Eardrum,
+    /// The eardrum's total force (pressure × area) applied at the umbo, medially.
+    Umbo,
+}
+
+/// What to compute.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TfaOptions {
+    pub frequencies_hz: Vec<f64>,
+    pub drive: Drive,
+    /// Drive pressure (Pa); the response is linear, so it only scales the displacements.
+    pub drive_pa: f64,
+}
+
+impl Default for TfaOptions {
+    fn default() -> Self {
+        TfaOptions {
+            frequencies_hz: third_octaves(250.0, 8000.0),
+            drive: Drive::Eardrum,
+            drive_pa: DRIVE_PA,
+        }
+    }
+}
+
+/// Base-2 one-third-octave frequencies 1000·2^(k/3) Hz within [lo, hi] (250 and 8000 Hz are
+/// exact members).
+pub fn third_octaves(lo: f64, hi: f64) -> Vec<f64> {
+    (-30..=30)
+        .map(|k| 1000.0 * 2f64.powf(k as f64 / 3.0))
+        .filter(|f| *f >= lo * (1.0 - 1e-9) && *f <= hi * (1.0 + 1e-9))
+        .collect()
+}
+
+/// One frequency of the transfer function.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TfPoint {
+    pub frequency_hz: f64,
+    /// |H_V| in µm/s/Pa.
+    pub magnitude_um_s_per_pa: f64,
+    /// ∠H_V in degrees, unwrapped along frequency.
+    pub phase_deg: f64,
+    /// |umbo velocity along the medial axis| / drive, µm/s/Pa (for diagnosis).
+    pub umbo_um_s_per_pa: f64,
+}
+
+impl TfPoint {
+    /// Magnitude in dB re 1 µm/s/Pa.
+    pub fn db(&self) -> f64 {
+        20.0 * self.magnitude_um_s_per_pa.log10()
+    }
+}
+
+/// The stapes velocity transfer function at the requested frequencies.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TransferFunction {
+    pub drive: Drive,
+    pub drive_pa: f64,
+    pub points: Vec<TfPoint>,
+}
+
+impl TransferFunction {
+    /// The point at `f` Hz (within 0.1 %), if computed.
+    pub fn at(&self, f: f64) -> Option<&TfPoint> {
+        self.points
+            .iter()
+            .find(|p| (p.frequency_hz - f).abs() <= 1e-3 * f)
+    }
+
+    /// Frequency (Hz) and magnitude (µm/s/Pa) of the maximum, refined by a parabola through
+    /// the largest sample and its neighbours in (log f, dB).
+    pub fn peak(&self) -> Option<(f64, f64)> {
+        let (i, _) = self.points.iter().enumerate().max_by(|a, b| {
+            a.1.magnitude_um_s_per_pa
+                .total_cmp(&b.1.magnitude_um_s_per_pa)
+        })?;
+        let p = &self.points;
+        if i == 0 || i + 1 == p.len() {
+            return Some((p[i].frequency_hz, p[i].magnitude_um_s_per_pa));
+        }
+        let (x0, x1, x2) = (
+            p[i - 1].frequency_hz.ln(),
+            p[i].frequency_hz.ln(),
+            p[i + 1].frequency_hz.ln(),
+        );
+        let (y0, y1, y2) = (p[i - 1].db(), p[i].db(), p[i + 1].db());
+        // vertex of the parabola through three points
+        let d = (x0 - x1) * (x0 - x2) * (x1 - x2);
+        let a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / d;
+        let b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / d;
+        if a >= 0.0 {
+            return Some((p[i].frequency_hz, p[i].magnitude_um_s_per_pa));
+        }
+        let xv = (-b / (2.0 * a)).clamp(x0, x2);
+        let c = y1 - a * x1 * x1 - b * x1;
+        let db = a * xv * xv + b * xv + c;
+        Some((xv.exp(), 10f64.powf(db / 20.0)))
+    }
+}
+
+/// Nodal force amplitudes (µN) of the drive.
+fn drive_forces(system: &MechanicalSystem, drive: Drive, p: f64) -> Vec<Vector3<f64>> {
+    let x = system.model.rest_positions();
+    let mut f = vec![Vector3::zeros(); x.len()];
+    match drive {
+        // the lateral normals point into the canal: canal pressure pushes against them
+        Drive::Eardrum => PressureLoad {
+            triangles: &system.eardrum,
+            pressure: -p,
+        }
+        .add_forces(x, &mut f),
+        Drive::Umbo => {
+            let total = system.medial * (p * system.eardrum_area_mm2);
+            for (&v, &w) in system.umbo.nodes.iter().zip(&system.umbo.weights) {
+                f[v as usize] += total * w;
+            }
+        }
+    }
+    f
+}
+
+/// The stapes velocity transfer function of `system` (frequencies solved in parallel).
+pub fn transfer_function(
+    system: &MechanicalSystem,
+    options: &TfaOptions,
+) -> Result<TransferFunction, MechanicsError> {
+    if !(options.drive_pa.is_finite() && options.drive_pa > 0.0) {
+        return Err(MechanicsError::InvalidOption {
+            what: "drive pressure (Pa)",
+            value: options.drive_pa,
+            expected: "finite and > 0",
+        });
+    }
+    if let Some(f) = options
+        .frequencies_hz
+        .iter()
+        .find(|f| !(f.is_finite() && **f > 0.0))
+    {
+        return Err(MechanicsError::InvalidOption {
+            what: "frequency (Hz)",
+            value: *f,
+            expected: "finite and > 0",
+        });
+    }
+    let solver = HarmonicSolver::new(
+        &system.model,
+        &system.fixed,
+        &system.node_stiffness,
+        &system.node_dashpot,
+        system.rayleigh,
+    )
+    .map_err(MechanicsError::solve("harmonic system"))?;
+    let force = drive_forces(system, options.drive, options.drive_pa);
+    let n = system.footplate_normal;
+    let responses: Vec<(c64, c64)> = options
+        .frequencies_hz
+        .par_iter()
+        .map(|&f| {
+            let omega = 2.0 * std::f64::consts::PI * f;
+            let u = solver
+                .solve(omega, &force)
+                .map_err(MechanicsError::solve(format!("harmonic solve at {f} Hz")))?;
+            let piston = system
+                .footplate
+                .iter()
+                .map(|&(v, w)| {
+                    let d = u[v as usize];
+                    (d[0] * n.x + d[1] * n.y + d[2] * n.z) * w
+                })
+                .sum::<c64>();
+            let m = system.medial;
+            let umbo = system
+                .umbo
+                .nodes
+                .iter()
+                .zip(&system.umbo.weights)
+                .map(|(&v, &w)| {
+                    let d = u[v as usize];
+                    (d[0] * m.x + d[1] * m.y + d[2] * m.z) * w
+                })
+                .sum::<c64>();
+            // velocity = iω û (mm/s) → µm/s per Pa of drive
+            let to_velocity = c64::new(0.0, omega * 1e3 / options.drive_pa);
+            Ok((piston * to_velocity, umbo * to_velocity))
+        })
+        .collect::<Result<_, MechanicsError>>()?;
+    let mut points = Vec::with_capacity(responses.len());
+    let mut previous: Option<f64> = None;
+    for (&f, (h, umbo)) in options.frequencies_hz.iter().zip(&responses) {
+        let mut phase = h.im.atan2(h.re).to_degrees();
+        if let Some(prev) = previous {
+            phase -= 360.0 * ((phase - prev) / 360.0).round();
+        }
+        previous = Some(phase);
+        points.push(TfPoint {
+            frequency_hz: f,
+            magnitude_um_s_per_pa: h.norm(),
+            phase_deg: phase,
+            umbo_um_s_per_pa: umbo.norm(),
+        });
+    }
+    Ok(TransferFunction {
+        drive: options.drive,
+        drive_pa: options.drive_pa,
+        points,
+    })
+}

@@ -1,0 +1,186 @@
+//! Umbo displacement under static pressure (UDSP), mechanics-metrics §1.2.
+//!
+//! Sign convention: p = P_ear canal − P_middle ear; p > 0 pushes the eardrum medially. The
+//! umbo displacement u is measured along the medial axis (positive = medial), so u(p) has the
+//! sign of p for a sound ear. The asymmetry ratio is |u(−4 kPa)| / |u(+4 kPa)|.
+//!
+//! Method: the pressure is a follower load on the lateral eardrum face (re-evaluated at every
+//! iterate); each branch (p > 0, p < 0) starts at rest and is loaded incrementally (steps of
+//! at most `max_step_pa`), each increment solved to equilibrium by Newton iterations on the
+//! corotational model (warped tangent, inversion guard; `StaticSolver::solve_with_pressure`).
+
+use rayon::join;
+use serde::Serialize;
+
+use super::boundary::MechanicalSystem;
+use super::error::MechanicsError;
+use crate::fem::{PressureLoad, StaticLoads, StaticOptions, StaticSolver};
+
+/// The pressures of the gate (Pa): ±1, ±2, ±4 kPa.
+pub const GATE_PRESSURES_PA: [f64; 6] = [-4000.0, -2000.0, -1000.0, 1000.0, 2000.0, 4000.0];
+
+/// What to compute.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UdspOptions {
+    /// Pressures (Pa), any order; 0 is always included.
+    pub pressures_pa: Vec<f64>,
+    /// Largest load increment (Pa).
+    pub max_step_pa: f64,
+    /// Convergence of each increment: largest nodal update (mm); 1e-5 mm is 0.05 % of the
+    /// umbo displacement at 1 kPa.
+    pub tolerance_mm: f64,
+    /// Newton iteration limit per increment.
+    pub max_iterations: usize,
+    /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): the
+    /// eardrum is a membrane without bending stiffness, whose out-of-plane tangent is nearly
+    /// singular where it is not yet tensioned.
+    pub tangent_shift: f64,
+}
+
+impl Default for UdspOptions {
+    /// −4000 … +4000 Pa every 250 Pa (33 pressures, containing ±1, ±2, ±4 kPa).
+    fn default() -> Self {
+        UdspOptions {
+            pressures_pa: (-16..=16).map(|k| 250.0 * k as f64).collect(),
+            max_step_pa: 250.0,
+            tolerance_mm: 1e-5,
+            max_iterations: 500,
+            tangent_shift: 100.0,
+        }
+    }
+}
+
+/// One point of the curve.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct UdspPoint {
+    pub pressure_pa: f64,
+    /// Umbo displacement along the medial axis (mm, positive = medial).
+    pub umbo_mm: f64,
+    /// Newton iterations spent reaching this point from the previous one.
+    pub iterations: usize,
+}
+
+/// The umbo displacement curve, sorted by pressure.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StaticCurve {
+    pub points: Vec<UdspPoint>,
+}
+
+impl StaticCurve {
+    /// Umbo displacement (mm) at `p` Pa, if computed.
+    pub fn at(&self, p: f64) -> Option<f64> {
+        self.points
+            .iter()
+            .find(|q| (q.pressure_pa - p).abs() < 1e-6)
+            .map(|q| q.umbo_mm)
+    }
+
+    /// |u(−4 kPa)| / |u(+4 kPa)|.
+    pub fn asymmetry(&self) -> Option<f64> {
+        Some(self.at(-4000.0)?.abs() / self.at(4000.0)?.abs())
+    }
+
+    /// Whether u strictly increases with p (a monotonic, sign-preserving response).
+    pub fn monotonic(&self) -> bool {
+        self.points.windows(2).all(|w| w[1].umbo_mm > w[0].umbo_mm)
+            && self.points.iter().all(|q| q.pressure_pa * q.umbo_mm >= 0.0)
+    }
+}
+
+/// The static pressure curve of `system`; the two branches are solved in parallel.
+pub fn static_pressure_curve(
+    system: &MechanicalSystem,
+    options: &UdspOptions,
+) -> Result<StaticCurve, MechanicsError> {
+    for (what, v) in [
+        ("largest pressure step (Pa)", options.max_step_pa),
+        ("static tolerance (mm)", options.tolerance_mm),
+        ("tangent shift + 1 (µN/mm)", options.tangent_shift + 1.0),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(MechanicsError::InvalidOption {
+                what,
+                value: v,
+                expected: "finite and > 0",
+            });
+        }
+    }
+    if let Some(p) = options.pressures_pa.iter().find(|p| !p.is_finite()) {
+        return Err(MechanicsError::InvalidOption {
+            what: "static pressure (Pa)",
+            value: *p,
+            expected: "finite",
+        });
+    }
+    let branch = |sign: f64| {
+        let mut ps: Vec<f64> = options
+            .pressures_pa
+            .iter()
+            .copied()
+            .filter(|p| p * sign > 0.0)
+            .collect();
+        ps.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+        ps.dedup();
+        solve_branch(system, &ps, options)
+    };
+    let (neg, pos) = join(|| branch(-1.0), || branch(1.0));
+    let mut points = neg?;
+    points.push(UdspPoint {
+        pressure_pa: 0.0,
+        umbo_mm: 0.0,
+        iterations: 0,
+    });
+    points.extend(pos?);
+    points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
+    Ok(StaticCurve { points })
+}
+
+/// Loads from rest through `pressures` (one sign, increasing magnitude).
+fn solve_branch(
+    system: &MechanicalSystem,
+    pressures: &[f64],
+    options: &UdspOptions,
+) -> Result<Vec<UdspPoint>, MechanicsError> {
+    let rest = system.model.rest_positions();
+    let mut x = rest.to_vec();
+    let mut solver = StaticSolver::new(&system.model, system.fixed.clone())
+        .map_err(MechanicsError::solve("static solver"))?;
+    let loads = StaticLoads {
+        springs: &system.springs,
+        nodal_forces: None,
+    };
+    let static_options = StaticOptions {
+        tolerance_mm: options.tolerance_mm,
+        max_iterations: options.max_iterations,
+        tangent_shift: options.tangent_shift,
+        ..StaticOptions::default()
+    };
+    let u0 = system.umbo.position(rest);
+    let mut out = Vec::with_capacity(pressures.len());
+    let mut current = 0.0f64;
+    for &target in pressures {
+        let steps = ((target - current).abs() / options.max_step_pa)
+            .ceil()
+            .max(1.0) as usize;
+        let mut iterations = 0;
+        for s in 1..=steps {
+            let p = current + (target - current) * s as f64 / steps as f64;
+            let load = PressureLoad {
+                triangles: &system.eardrum,
+                // the lateral normals point into the canal: canal pressure pushes against them
+                pressure: -p,
+            };
+            let report = solver
+                .solve_with_pressure(&mut x, &loads, &load, &static_options)
+                .map_err(MechanicsError::solve(format!("static pressure {p:.0} Pa")))?;
+            iterations += report.iterations;
+        }
+        current = target;
+        out.push(UdspPoint {
+            pressure_pa: target,
+            umbo_mm: (system.umbo.position(&x) - u0).dot(&system.medial),
+            iterations,
+        });
+    }
+    Ok(out)
+}

@@ -1,0 +1,94 @@
+//! `validate`: the two mechanical checks (TFA and UDSP) of an atlas at given node positions,
+//! and their verdicts — against the literature for the atlas itself, against the atlas for a
+//! package (the atlas with registered node positions, which must keep the atlas's behaviour).
+
+use nalgebra::Point3;
+use serde::Serialize;
+
+use super::boundary::MechanicalSystem;
+use super::error::MechanicsError;
+use super::tfa::{TfaOptions, TransferFunction, transfer_function};
+use super::udsp::{StaticCurve, UdspOptions, static_pressure_curve};
+use super::verdict::{Verdict, literature_verdict, relative_verdict};
+use crate::atlas::Atlas;
+
+/// What to compute.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ValidationOptions {
+    pub tfa: TfaOptions,
+    pub udsp: UdspOptions,
+}
+
+/// The results of both checks on one geometry.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Mechanics {
+    pub transfer_function: TransferFunction,
+    pub udsp: StaticCurve,
+    /// Wall time of the TFA and of the UDSP (s).
+    pub tfa_seconds: f64,
+    pub udsp_seconds: f64,
+}
+
+/// Runs TFA and UDSP on `atlas` with its rest shape at `nodes`.
+pub fn mechanics(
+    atlas: &Atlas,
+    nodes: &[Point3<f64>],
+    options: &ValidationOptions,
+) -> Result<Mechanics, MechanicsError> {
+    let system = MechanicalSystem::new(atlas, nodes)?;
+    let t = std::time::Instant::now();
+    let transfer_function = transfer_function(&system, &options.tfa)?;
+    let tfa_seconds = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let udsp = static_pressure_curve(&system, &options.udsp)?;
+    Ok(Mechanics {
+        transfer_function,
+        udsp,
+        tfa_seconds,
+        udsp_seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// The validation of an atlas (literature gates) or of a package (gates relative to the atlas
+/// it came from, whose own results are kept as `reference`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Validation {
+    pub mechanics: Mechanics,
+    pub reference: Option<Mechanics>,
+    pub verdict: Verdict,
+}
+
+/// Validates the atlas against the literature bands.
+pub fn validate_atlas(
+    atlas: &Atlas,
+    options: &ValidationOptions,
+) -> Result<Validation, MechanicsError> {
+    let m = mechanics(atlas, atlas.nodes(), options)?;
+    let verdict = literature_verdict(&m.transfer_function, &m.udsp);
+    Ok(Validation {
+        mechanics: m,
+        reference: None,
+        verdict,
+    })
+}
+
+/// Validates a package — `atlas` with its nodes moved to `registered` — against the atlas.
+pub fn validate_package(
+    atlas: &Atlas,
+    registered: &[Point3<f64>],
+    options: &ValidationOptions,
+) -> Result<Validation, MechanicsError> {
+    let reference = mechanics(atlas, atlas.nodes(), options)?;
+    let m = mechanics(atlas, registered, options)?;
+    let verdict = relative_verdict(
+        &m.transfer_function,
+        &m.udsp,
+        &reference.transfer_function,
+        &reference.udsp,
+    );
+    Ok(Validation {
+        mechanics: m,
+        reference: Some(reference),
+        verdict,
+    })
+}

@@ -1,0 +1,253 @@
+//! The mechanics solvers against analytic truth: a single mass-spring-damper's harmonic
+//! response (magnitude and phase), a cantilever's first natural frequency against
+//! Euler-Bernoulli as the mesh is refined, a pressurised spherical membrane against Laplace's
+//! law, and the follower-pressure static solve at low pressure against the small-strain
+//! (linear) solution.
+
+mod common;
+
+use common::meshes::BoxMesh;
+use faer::c64;
+use nalgebra::{Point3, Vector3};
+use otoatlas::fem::{
+    CorotationalState, Elements, FemModel, FixedDofs, HarmonicSolver, MembraneMaterial,
+    PressureLoad, Rayleigh, SparseCholesky, SparsePattern, StaticLoads, StaticOptions,
+    StaticSolver, TetMaterial,
+};
+use otoatlas::mesh::shapes::icosphere;
+
+fn tet_model(nodes: &[Point3<f64>], tets: &[[u32; 4]], mat: TetMaterial) -> FemModel {
+    let index = vec![0; tets.len()];
+    FemModel::new(
+        nodes,
+        Elements {
+            cells: tets,
+            material_index: &index,
+            materials: &[mat],
+        },
+        Elements::none(),
+    )
+    .unwrap()
+}
+
+/// One free node of a right tetrahedron (the other three fixed) moves along z as a single
+/// degree of freedom: k = V(λ + 2μ) (+ the node spring), m = ρV/4, c = dashpot + αm + βk.
+#[test]
+fn single_mass_spring_damper_harmonic_response_is_exact() {
+    let nodes = [
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(0.0, 1.0, 0.0),
+        Point3::new(0.0, 0.0, 1.0),
+    ];
+    let mat = TetMaterial {
+        youngs_modulus: 2.0e4,
+        poisson_ratio: 0.25,
+        density: 1.5e-3,
+    };
+    let model = tet_model(&nodes, &[[0, 1, 2, 3]], mat);
+    let fixed = FixedDofs::from_nodes(4, &[0, 1, 2]).unwrap();
+    let (spring, dashpot) = (700.0, 0.9);
+    let rayleigh = Rayleigh {
+        mass: 30.0,
+        stiffness: 2e-4,
+    };
+    let solver = HarmonicSolver::new(
+        &model,
+        &fixed,
+        &[0.0, 0.0, 0.0, spring],
+        &[0.0, 0.0, 0.0, dashpot],
+        rayleigh,
+    )
+    .unwrap();
+    let (e, nu) = (mat.youngs_modulus, mat.poisson_ratio);
+    let (lambda, mu) = (
+        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+        e / (2.0 * (1.0 + nu)),
+    );
+    let volume = 1.0 / 6.0;
+    let k = volume * (lambda + 2.0 * mu) + spring;
+    let m = mat.density * volume / 4.0;
+    assert!((model.lumped_masses()[3] - m).abs() < 1e-18);
+    let force = [
+        Vector3::zeros(),
+        Vector3::zeros(),
+        Vector3::zeros(),
+        Vector3::z() * 3.0,
+    ];
+    let natural = (k / m).sqrt();
+    for omega in [0.0, 0.3 * natural, natural, 2.5 * natural] {
+        let u = solver.solve(omega, &force).unwrap();
+        let exact = c64::new(3.0, 0.0)
+            / c64::new(
+                k - omega * omega * m,
+                omega * (rayleigh.stiffness * k + rayleigh.mass * m + dashpot),
+            );
+        let got = u[3][2];
+        assert!(
+            (got - exact).norm() <= 1e-10 * exact.norm(),
+            "ω = {omega}: {got} vs {exact}"
+        );
+        assert!(u[3][0].norm() + u[3][1].norm() <= 1e-12 * exact.norm());
+        assert!(u[0..3].iter().flatten().all(|d| d.norm() == 0.0));
+    }
+    // at resonance the response lags the force by exactly 90°
+    let u = solver.solve(natural, &force).unwrap()[3][2];
+    assert!((u.im.atan2(u.re).to_degrees() + 90.0).abs() < 1e-9);
+}
+
+/// Lowest eigenvalue of K φ = λ M φ by inverse iteration (K with fixed DOFs projected).
+fn lowest_eigenvalue(model: &FemModel, fixed: &FixedDofs) -> f64 {
+    let pattern = SparsePattern::new(model);
+    let mut state = CorotationalState::new(model);
+    state.update(model, model.rest_positions()).unwrap();
+    let mut values = pattern.zero_values();
+    pattern
+        .assemble(model, &state, 1.0, None, fixed, &mut values)
+        .unwrap();
+    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
+    chol.factorise(pattern.matrix(&values)).unwrap();
+    let mass: Vec<f64> = (0..model.dof_count())
+        .map(|d| model.lumped_masses()[d / 3])
+        .collect();
+    let mut x: Vec<f64> = (0..model.dof_count())
+        .map(|d| ((d % 3) + 1) as f64)
+        .collect();
+    fixed.zero_fixed(&mut x);
+    let mut lambda = 0.0;
+    for _ in 0..60 {
+        let mx: Vec<f64> = x.iter().zip(&mass).map(|(a, m)| a * m).collect();
+        let mut y = mx.clone();
+        fixed.zero_fixed(&mut y);
+        chol.solve_in_place(&mut y).unwrap();
+        let ymy: f64 = y.iter().zip(&mass).map(|(a, m)| a * a * m).sum();
+        let ymx: f64 = y.iter().zip(&mx).map(|(a, b)| a * b).sum();
+        lambda = ymx / ymy;
+        x = y.iter().map(|v| v / ymy.sqrt()).collect();
+    }
+    lambda
+}
+
+#[test]
+fn cantilever_first_frequency_converges_to_euler_bernoulli() {
+    let (length, side): (f64, f64) = (10.0, 1.0);
+    let mat = TetMaterial {
+        youngs_modulus: 1.0e6,
+        poisson_ratio: 0.3,
+        density: 1.0e-3,
+    };
+    let inertia = side.powi(4) / 12.0;
+    let area = side * side;
+    // first root of 1 + cos βL cosh βL = 0
+    let beta_l: f64 = 1.875_104_068_711_96;
+    let exact = beta_l * beta_l / (2.0 * std::f64::consts::PI)
+        * (mat.youngs_modulus * inertia / (mat.density * area * length.powi(4))).sqrt();
+    let mut errors = Vec::new();
+    for n in [1, 2, 4] {
+        let mesh = BoxMesh::new([length, side, side], [10 * n, n, n]);
+        let model = tet_model(&mesh.nodes, &mesh.tets, mat);
+        let fixed = FixedDofs::from_nodes(mesh.nodes.len(), &mesh.nodes_on_plane(0, 0.0)).unwrap();
+        let f = lowest_eigenvalue(&model, &fixed).sqrt() / (2.0 * std::f64::consts::PI);
+        let err = (f - exact) / exact;
+        println!(
+            "cantilever n = {n}: f1 = {f:.3} Hz, Euler-Bernoulli {exact:.3} Hz, error {err:.4}"
+        );
+        errors.push(err);
+    }
+    // linear tetrahedra are too stiff in bending: the error is positive and shrinks
+    assert!(errors.iter().all(|e| *e > 0.0), "{errors:?}");
+    assert!(errors.windows(2).all(|w| w[1] < 0.7 * w[0]), "{errors:?}");
+    assert!(*errors.last().unwrap() < 0.15, "{errors:?}");
+}
+
+/// Symmetry constraints of a body centred at the origin: the DOF normal to each coordinate
+/// plane is fixed for the nodes on that plane (exact for a symmetric load).
+fn symmetry_dofs(nodes: &[Point3<f64>]) -> FixedDofs {
+    let mut dofs = Vec::new();
+    for (v, p) in nodes.iter().enumerate() {
+        for axis in 0..3 {
+            if p[axis].abs() < 1e-9 {
+                dofs.push((3 * v + axis) as u32);
+            }
+        }
+    }
+    FixedDofs::from_dofs(nodes.len(), &dofs).unwrap()
+}
+
+fn membrane_model(nodes: &[Point3<f64>], tris: &[[u32; 3]], mat: MembraneMaterial) -> FemModel {
+    let index = vec![0; tris.len()];
+    FemModel::new(
+        nodes,
+        Elements::none(),
+        Elements {
+            cells: tris,
+            material_index: &index,
+            materials: &[mat],
+        },
+    )
+    .unwrap()
+}
+
+#[test]
+fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() {
+    let radius = 4.0;
+    let sphere = icosphere(Point3::origin(), radius, 3);
+    let mat = MembraneMaterial {
+        youngs_modulus: 3.0e7,
+        poisson_ratio: 0.3,
+        thickness: 0.05,
+        density: 1.2e-3,
+    };
+    let model = membrane_model(&sphere.vertices, &sphere.triangles, mat);
+    let fixed = symmetry_dofs(&sphere.vertices);
+    let pressure = 100.0;
+    // Laplace: σ = pR/(2h) in every direction; radial strain (1 − ν)σ/E
+    let exact = pressure * radius * radius * (1.0 - mat.poisson_ratio)
+        / (2.0 * mat.youngs_modulus * mat.thickness);
+    let load = PressureLoad {
+        triangles: &sphere.triangles,
+        pressure,
+    };
+    let mut x = sphere.vertices.clone();
+    let mut solver = StaticSolver::new(&model, fixed.clone()).unwrap();
+    let options = StaticOptions {
+        tolerance_mm: 1e-10,
+        ..StaticOptions::default()
+    };
+    solver
+        .solve_with_pressure(&mut x, &StaticLoads::default(), &load, &options)
+        .unwrap();
+    let radial: Vec<f64> = x.iter().map(|p| p.coords.norm() - radius).collect();
+    let mean = radial.iter().sum::<f64>() / radial.len() as f64;
+    let spread = radial.iter().map(|r| (r - mean).abs()).fold(0.0, f64::max);
+    println!("sphere: mean radial {mean:e} mm, Laplace {exact:e} mm, spread {spread:e}");
+    // flat facets: the mean of the discrete sphere is within 1 % of the continuum (measured
+    // 0.4 %); node to node it varies with the icosphere's unequal triangles and valences
+    // (measured ±33 % of δ at 3 subdivisions)
+    assert!((mean - exact).abs() < 0.01 * exact, "{mean} vs {exact}");
+    assert!(spread < 0.4 * exact, "{spread}");
+    // small-strain solution: one linear solve K u = f(rest)
+    let pattern = SparsePattern::new(&model);
+    let mut state = CorotationalState::new(&model);
+    state.update(&model, model.rest_positions()).unwrap();
+    let mut values = pattern.zero_values();
+    pattern
+        .assemble(&model, &state, 1.0, None, &fixed, &mut values)
+        .unwrap();
+    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
+    chol.factorise(pattern.matrix(&values)).unwrap();
+    let mut f = vec![Vector3::zeros(); x.len()];
+    load.add_forces(model.rest_positions(), &mut f);
+    let mut u: Vec<f64> = f.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+    fixed.zero_fixed(&mut u);
+    chol.solve_in_place(&mut u).unwrap();
+    let worst = x
+        .iter()
+        .zip(model.rest_positions())
+        .zip(u.chunks_exact(3))
+        .map(|((p, p0), ul)| ((p - p0) - Vector3::new(ul[0], ul[1], ul[2])).norm())
+        .fold(0.0, f64::max);
+    // at this low pressure the nonlinear follower solution is the small-strain one within 1 %
+    // of δ at every node (measured 0.74 %)
+    assert!(worst < 1e-2 * exact, "{worst} vs {exact}");
+}

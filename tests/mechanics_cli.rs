@@ -1,0 +1,39 @@
+//! `otoatlas simulate` end to end: the trajectory file, the JSON report, bad options.
+//! (`validate` is exercised by the library tests; its full run is a benchmark.)
+
+mod common;
+
+use common::{otoatlas, otoatlas_json};
+
+#[test]
+fn simulate_writes_the_umbo_trajectory() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("umbo.csv");
+    let (code, json) = otoatlas_json(&[
+        "simulate",
+        "--steps",
+        "4",
+        "--pressure",
+        "500",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{json}");
+    assert!(json["frames_per_second"].as_f64().unwrap() > 0.0);
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "time_s,umbo_medial_mm,x_mm,y_mm,z_mm");
+    assert_eq!(rows.len(), 1 + 5, "{csv}");
+    let last: Vec<f64> = rows[5].split(',').map(|v| v.parse().unwrap()).collect();
+    assert!((last[0] - 0.16).abs() < 1e-12);
+    // canal pressure pushes the umbo medially, toward the 500 Pa static value (12.1 µm)
+    assert!(last[1] > 0.0 && last[1] < 0.0125, "{}", last[1]);
+    assert_eq!(json["final_umbo_medial_mm"].as_f64().unwrap(), last[1]);
+}
+
+#[test]
+fn simulate_rejects_a_bad_time_step() {
+    let out = otoatlas(&["simulate", "--steps", "2", "--dt", "0", "--quiet"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("time step"));
+}
