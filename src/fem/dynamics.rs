@@ -26,6 +26,27 @@ pub struct Rayleigh {
     pub stiffness: f64,
 }
 
+impl Rayleigh {
+    /// Both coefficients finite and non-negative.
+    pub fn validate(&self) -> Result<(), FemError> {
+        non_negative("rayleigh mass", self.mass)?;
+        non_negative("rayleigh stiffness", self.stiffness)
+    }
+}
+
+/// `Err(InvalidParameter)` unless `value` is finite and ≥ 0.
+pub(crate) fn non_negative(what: &'static str, value: f64) -> Result<(), FemError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(FemError::InvalidParameter {
+            what,
+            value,
+            expected: "finite and >= 0",
+        })
+    }
+}
+
 /// What one implicit step produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepReport {
@@ -58,18 +79,7 @@ impl<'m> ImplicitEuler<'m> {
                 found: fixed.len(),
             });
         }
-        for (what, v) in [
-            ("rayleigh mass", damping.mass),
-            ("rayleigh stiffness", damping.stiffness),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(FemError::InvalidParameter {
-                    what,
-                    value: v,
-                    expected: "finite and >= 0",
-                });
-            }
-        }
+        damping.validate()?;
         let pattern = SparsePattern::new(model);
         let cholesky = SparseCholesky::analyse(&pattern)?;
         Ok(ImplicitEuler {

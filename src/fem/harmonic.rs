@@ -16,7 +16,7 @@ use faer::{Conj, MatMut, Par, c64};
 use nalgebra::Vector3;
 
 use super::assembly::SparsePattern;
-use super::dynamics::Rayleigh;
+use super::dynamics::{Rayleigh, non_negative};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
@@ -77,19 +77,10 @@ impl HarmonicSolver {
             .iter()
             .map(|v| ("node stiffness (µN/mm)", *v))
             .chain(node_dashpot.iter().map(|v| ("node dashpot (g/s)", *v)))
-            .chain([
-                ("rayleigh mass", rayleigh.mass),
-                ("rayleigh stiffness", rayleigh.stiffness),
-            ])
         {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(FemError::InvalidParameter {
-                    what,
-                    value: v,
-                    expected: "finite and >= 0",
-                });
-            }
+            non_negative(what, v)?;
         }
+        rayleigh.validate()?;
         let pattern = SparsePattern::new(model);
         let mut state = CorotationalState::new(model);
         state.update(model, model.rest_positions())?;

@@ -200,15 +200,7 @@ fn fix(
 ) -> usize {
     let n = star.tets.len();
     let set = |positions: &mut dyn Iterator<Item = usize>, label: u16, labels: &mut [u16]| {
-        let mut changed = 0;
-        for i in positions {
-            let t = star.tets[i] as usize;
-            if labels[t] != label {
-                labels[t] = label;
-                changed += 1;
-            }
-        }
-        changed
+        relabel(star, positions, label, labels)
     };
     match defect {
         Defect::None => 0,
@@ -300,8 +292,18 @@ fn fix_group(
     let Some(label) = from(&near).or_else(|| from(&(0..n).collect::<Vec<_>>())) else {
         return 0;
     };
+    relabel(star, &mut fill.into_iter(), label, labels)
+}
+
+/// Gives the star's tets at `positions` the label `label`; returns how many changed.
+fn relabel(
+    star: &Star,
+    positions: &mut dyn Iterator<Item = usize>,
+    label: u16,
+    labels: &mut [u16],
+) -> usize {
     let mut changed = 0;
-    for i in fill {
+    for i in positions {
         let t = star.tets[i] as usize;
         if labels[t] != label {
             labels[t] = label;
