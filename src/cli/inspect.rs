@@ -13,7 +13,7 @@ use crate::{Error, image};
 /// Read a CBCT volume (DICOM folder, multi-frame DICOM file, or NIfTI) and describe it.
 #[derive(Debug, Args)]
 #[command(after_help = "Examples:
-  otoatlas inspect sample_cases/case01/dicom
+  otoatlas inspect sample_cases/case-001/dicom
   otoatlas inspect scan.nii.gz --json
   otoatlas inspect /media/export --series 3f9a1c   # pick a series by its hash prefix")]
 pub struct InspectArgs {

@@ -26,7 +26,7 @@ echoed with the intensity there, and asked again if it is not understood or outs
 On a pipe, one answer per line.
 
 Examples:
-  otoatlas landmarks sample_cases/case01
+  otoatlas landmarks sample_cases/case-001
   printf '1 2 3\\nv 10 20 30\\n4 5 6\\n' | otoatlas landmarks scan.nii.gz --out picks.fcsv"
 )]
 pub struct LandmarksArgs {

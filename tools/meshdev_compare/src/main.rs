@@ -27,7 +27,7 @@ per-structure meshes named by structure. A reference named 'ossicles' or 'chain'
 with the union of the test's malleus, incus and stapes.
 
 Examples:
-  meshdev_compare sample_cases/case01/segmentation out/case01/registered/surfaces
+  meshdev_compare sample_cases/case-001/segmentation out/case-001/registered/surfaces
   meshdev_compare seg/labels.nii.gz reg/surfaces --json --map out/deviation.ply
   meshdev_compare manual.stl model.ply --pair manual=model --tolerance 0.125
 
