@@ -143,9 +143,16 @@ pub fn material(structure: Structure) -> Material {
 /// Hear Res 213:120 [M]): it stands in for the compliance the cone's missing radial
 /// curvature would give (docs/mechanics.md).
 pub fn membrane_thickness_mm(region: MembraneRegion) -> f64 {
+    anatomical_thickness_mm(region) * MEMBRANE_THICKNESS_FACTOR
+}
+
+/// The anatomical membrane thickness (mm): pars tensa 0.074 mm [Ki60], pars flaccida 0.1 mm
+/// [Li70]. What an image shows (the phantoms render it); the mechanical model uses
+/// [`membrane_thickness_mm`].
+pub fn anatomical_thickness_mm(region: MembraneRegion) -> f64 {
     match region {
-        MembraneRegion::ParsTensa => 0.074 * MEMBRANE_THICKNESS_FACTOR,
-        MembraneRegion::ParsFlaccida => 0.1 * MEMBRANE_THICKNESS_FACTOR,
+        MembraneRegion::ParsTensa => 0.074,
+        MembraneRegion::ParsFlaccida => 0.1,
     }
 }
 

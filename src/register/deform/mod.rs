@@ -226,12 +226,12 @@ pub fn deform(
         // equilibrium: the nodes stopped moving, or the borders stopped getting closer (in a
         // noisy image the border points jitter by a fraction of a voxel from one iteration
         // to the next, so the nodes never stop exactly)
-        best_offset = best_offset.min(mean_offset);
-        stalled = if mean_offset > (1.0 - PLATEAU) * best_offset && iteration > 1 {
+        stalled = if mean_offset > (1.0 - PLATEAU) * best_offset {
             stalled + 1
         } else {
             0
         };
+        best_offset = best_offset.min(mean_offset);
         if p99_update < cfg.tolerance_mm || stalled >= PLATEAU_ITERATIONS {
             status = DeformStatus::Converged;
             break;
