@@ -109,32 +109,27 @@ impl MeshPoint {
     /// Ties `p` to the tetrahedron that contains it best (largest smallest barycentric
     /// coordinate), with its distance outside that tetrahedron (0 inside) [mm].
     pub fn locate(mesh: &TetMesh, p: &Point3<f64>) -> Option<(MeshPoint, f64)> {
+        // (tet, barycentric, smallest coordinate) of the tet that contains p best
         let mut best: Option<(MeshPoint, f64)> = None;
         for (t, tet) in mesh.tets.iter().enumerate() {
             let Some(b) = barycentric(&tet.map(|v| mesh.nodes[v as usize]), p) else {
                 continue;
             };
             let worst = b.iter().copied().fold(f64::INFINITY, f64::min);
-            if best.is_none_or(|(bp, _)| {
-                worst > bp.barycentric.iter().copied().fold(f64::INFINITY, f64::min)
-            }) {
-                best = Some((
-                    MeshPoint {
-                        tet: t as u32,
-                        barycentric: b,
-                    },
-                    0.0,
-                ));
+            if best.is_none_or(|(_, w)| worst > w) {
+                let point = MeshPoint {
+                    tet: t as u32,
+                    barycentric: b,
+                };
+                best = Some((point, worst));
             }
         }
         best.map(|(mp, _)| {
-            let tet = mesh.tets[mp.tet as usize];
-            let clamped = clamp_barycentric(mp.barycentric);
-            let inside = Point3::from(
-                (0..4)
-                    .map(|k| mesh.nodes[tet[k] as usize].coords * clamped[k])
-                    .sum::<nalgebra::Vector3<f64>>(),
-            );
+            let inside = MeshPoint {
+                barycentric: clamp_barycentric(mp.barycentric),
+                ..mp
+            }
+            .position(&mesh.tets, &mesh.nodes);
             (mp, (inside - p).norm())
         })
     }

@@ -82,6 +82,13 @@ pub fn fit_eardrum(
         }
     }
     free.iter().for_each(|&v| x[v] = placed[v] + u[v]);
+    let free_neighbours: Vec<Vec<u32>> = free
+        .iter()
+        .map(|&v| {
+            let nb = neighbours[v].iter().copied();
+            nb.filter(|&w| !in_tet[w as usize]).collect()
+        })
+        .collect();
     let mut fit = EardrumFit {
         free_nodes: free.len(),
         found_last_round: 0,
@@ -143,15 +150,10 @@ pub fn fit_eardrum(
         // smooth: average each free node with its free neighbours (unknown ones count 0)
         for _ in 0..SMOOTHING_SWEEPS {
             let previous = smooth.clone();
-            for &v in &free {
-                let nb: Vec<usize> = neighbours[v]
-                    .iter()
-                    .map(|&w| w as usize)
-                    .filter(|&w| !in_tet[w])
-                    .collect();
+            for (&v, nb) in free.iter().zip(&free_neighbours) {
                 let own = if known[v] { previous[v] } else { 0.0 };
-                smooth[v] =
-                    (own + nb.iter().map(|&w| previous[w]).sum::<f64>()) / (1 + nb.len()) as f64;
+                smooth[v] = (own + nb.iter().map(|&w| previous[w as usize]).sum::<f64>())
+                    / (1 + nb.len()) as f64;
             }
         }
         for &v in &free {
