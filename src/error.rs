@@ -24,6 +24,8 @@ pub enum Error {
     #[error(transparent)]
     Case(#[from] crate::pipeline::case::CaseNotFound),
     #[error(transparent)]
+    Cohort(#[from] crate::pipeline::cohort::CohortError),
+    #[error(transparent)]
     MeshDev(#[from] crate::meshdev::MeshDevError),
     #[error(transparent)]
     MeshIo(#[from] crate::mesh::io::MeshIoError),
@@ -53,6 +55,7 @@ impl Error {
             | Error::Config(_)
             | Error::Landmark(_)
             | Error::Case(_)
+            | Error::Cohort(_)
             | Error::MeshIo(_)
             | Error::Anatomy(_)
             | Error::Atlas(_)

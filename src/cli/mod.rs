@@ -2,6 +2,7 @@
 //! lives in its own file; this one only parses, runs and maps errors to exit codes.
 
 pub mod atlas;
+mod batch;
 mod inspect;
 mod landmarks;
 mod phantom;
@@ -37,6 +38,8 @@ pub enum Command {
     Inspect(inspect::InspectArgs),
     Landmarks(landmarks::LandmarksArgs),
     Run(run::RunArgs),
+    Batch(batch::BatchArgs),
+    CohortReport(batch::CohortReportArgs),
     Atlas(atlas::AtlasArgs),
     Phantom(phantom::PhantomArgs),
     Validate(validate::ValidateArgs),
@@ -66,6 +69,8 @@ pub fn main() -> ExitCode {
         Command::Landmarks(a) => a.json,
         Command::Atlas(a) => a.json,
         Command::Run(a) => a.json,
+        Command::Batch(a) => a.json,
+        Command::CohortReport(a) => a.json,
         Command::Phantom(a) => a.json,
         Command::Validate(a) => a.json,
         Command::Simulate(a) => a.json,
@@ -75,6 +80,8 @@ pub fn main() -> ExitCode {
         Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
         Command::Atlas(a) => atlas::run(a),
         Command::Run(a) => run::run(a, cli.config.as_deref()),
+        Command::Batch(a) => batch::run(a, cli.config.as_deref()),
+        Command::CohortReport(a) => batch::cohort_report(a),
         Command::Phantom(a) => phantom::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Simulate(a) => simulate::run(a),

@@ -1,8 +1,12 @@
-//! The pipeline: the case folder, the stages of `run` with their artefacts and timings, and
-//! the scoring against a manual segmentation.
+//! The pipeline: the case folder, the stages of `run` with their artefacts and timings, the
+//! scoring against a manual segmentation, and cohorts (`batch`, shards, Slurm arrays).
 
+pub mod batch;
 pub mod case;
+pub mod cohort;
+pub mod cohort_summary;
 pub mod run;
+pub mod sbatch;
 pub mod score;
 pub mod stage;
 

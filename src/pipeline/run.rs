@@ -155,6 +155,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     let mut timings: Vec<(Stage, f64)> = Vec::new();
     let started = Instant::now();
 
+    progress::case_stage(&case.id, Stage::Ingest.name());
     // ingest: always read (the later stages need the voxels); on resume, the image must be
     // the one the earlier run saw
     let t = Instant::now();
@@ -187,6 +188,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         .fold(f64::INFINITY, f64::min);
     timings.push((Stage::Ingest, t.elapsed().as_secs_f64()));
 
+    progress::case_stage(&case.id, Stage::Landmarks.name());
     // landmarks and side
     let t = Instant::now();
     let file = if opts.from <= Stage::Landmarks {
@@ -218,6 +220,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         atlas.name
     ));
 
+    progress::case_stage(&case.id, Stage::Rigid.name());
     // rigid
     let t = Instant::now();
     let fit: RigidFit = if opts.from <= Stage::Rigid {
@@ -249,6 +252,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     ));
     let placed = place(&atlas, &fit);
 
+    progress::case_stage(&case.id, Stage::Deform.name());
     // deform
     let t = Instant::now();
     let deform_vtu = out.join("stages").join("deform.vtu");
@@ -288,6 +292,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         (mesh.tets.nodes, value)
     };
 
+    progress::case_stage(&case.id, Stage::Score.name());
     // score (with a segmentation)
     let t = Instant::now();
     let scores = match &case.segmentation {
@@ -307,6 +312,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         None => None,
     };
 
+    progress::case_stage(&case.id, Stage::Export.name());
     // export
     let t = Instant::now();
     let registered_dir = out.join("registered");

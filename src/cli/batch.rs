@@ -1,0 +1,194 @@
+//! `otoatlas batch` (a cohort in parallel, with resume, shards and Slurm job arrays) and
+//! `otoatlas cohort-report` (the shards' results merged).
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+
+use super::Report;
+use crate::Error;
+use crate::config::Config;
+use crate::pipeline::batch::{BatchOptions, Outcome, run_batch};
+use crate::pipeline::cohort::{Shard, read_cohort};
+use crate::pipeline::cohort_summary::{merge_cohort, write_case_list};
+use crate::pipeline::sbatch::{SbatchSpec, sbatch_script};
+
+/// Register a cohort: every case through `run`, in parallel, each into OUT/cases/ID/, with a
+/// cohort report.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "COHORT is a folder of case folders or a manifest (.toml with [[case]] \
+tables, or .csv with the columns id,image,landmarks[,segmentation]; paths relative to the \
+manifest).
+
+Outputs under OUT: cases/ID/ (what `run` writes, plus status.json), cohort.json, the cohort \
+report. Exit code 1 when any case failed.
+
+Examples:
+  otoatlas batch sample_cases --out out/cohort
+  otoatlas batch cohort.toml --out out/cohort --jobs 2 --resume
+  otoatlas batch cohort.csv --out /scratch/cohort --emit-sbatch cohort.sbatch --shards 8
+  otoatlas cohort-report /scratch/cohort"
+)]
+pub struct BatchArgs {
+    /// A folder of case folders, or a cohort manifest (.toml or .csv).
+    pub cohort: PathBuf,
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Cases at once (and threads in all); default: every core.
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Skip the cases whose outputs are complete and current (same inputs and configuration).
+    #[arg(long)]
+    pub resume: bool,
+    /// Run only the K-th of N deterministic slices of the cohort (K from 0); default: from
+    /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when set, else the whole cohort.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// Atlas folder instead of the embedded default.
+    #[arg(long, value_name = "DIR")]
+    pub atlas: Option<PathBuf>,
+    /// Write a Slurm job-array script for the cohort to FILE instead of running it.
+    #[arg(long, value_name = "FILE")]
+    pub emit_sbatch: Option<PathBuf>,
+    /// Array tasks of the emitted script; default: one per case.
+    #[arg(long, value_name = "N", requires = "emit_sbatch")]
+    pub shards: Option<usize>,
+    /// Print machine-readable JSON (cohort.json) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Merge the results of a batch's shards into OUT/cohort.json and the cohort report.
+#[derive(Debug, Args)]
+pub struct CohortReportArgs {
+    /// The --out folder of the batch.
+    pub out: PathBuf,
+    /// Print machine-readable JSON (cohort.json) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn absolute(path: &Path) -> Result<PathBuf, Error> {
+    std::path::absolute(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error> {
+    let config = Config::load(config_path)?;
+    let cases = read_cohort(&args.cohort)?;
+    let jobs = args
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if let Some(script_path) = &args.emit_sbatch {
+        let out = absolute(&args.out)?;
+        let logs = out.join("slurm");
+        std::fs::create_dir_all(&logs).map_err(|source| Error::Io {
+            path: logs.clone(),
+            source,
+        })?;
+        let exe = std::env::current_exe().map_err(|source| Error::Io {
+            path: "otoatlas".into(),
+            source,
+        })?;
+        let tasks = args.shards.unwrap_or(cases.len()).clamp(1, cases.len());
+        let config_abs = config_path.map(absolute).transpose()?;
+        let atlas_abs = args.atlas.as_deref().map(absolute).transpose()?;
+        let script = sbatch_script(&SbatchSpec {
+            exe: &exe,
+            cohort: &absolute(&args.cohort)?,
+            out: &out,
+            tasks,
+            jobs,
+            config: config_abs.as_deref(),
+            atlas: atlas_abs.as_deref(),
+        });
+        crate::io_util::write_atomic(script_path, script.as_bytes())?;
+        return Ok(Report {
+            text: format!(
+                "wrote {} ({tasks} array tasks over {} cases); submit it with sbatch, then run \
+                 `otoatlas cohort-report {}`\n",
+                script_path.display(),
+                cases.len(),
+                out.display()
+            ),
+            json: serde_json::json!({ "script": script_path, "tasks": tasks, "cases": cases.len() }),
+        });
+    }
+    let shard = match &args.shard {
+        Some(text) => Some(Shard::parse(text)?),
+        None => Shard::from_slurm(),
+    };
+    let ids: Vec<String> = cases.iter().map(|c| c.id.clone()).collect();
+    write_case_list(&args.out, &ids)?;
+    let selected = match shard {
+        Some(s) => s.select(cases),
+        None => cases,
+    };
+    let opts = BatchOptions {
+        out: args.out.clone(),
+        jobs,
+        resume: args.resume,
+        atlas: args.atlas.clone(),
+    };
+    let statuses = run_batch(&selected, &opts, &config)?;
+    let failed: Vec<_> = statuses
+        .iter()
+        .filter(|s| s.outcome == Outcome::Failed)
+        .collect();
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{} cases: {} ran, {} resumed, {} failed",
+        statuses.len(),
+        statuses.iter().filter(|s| s.outcome == Outcome::Ok).count(),
+        statuses
+            .iter()
+            .filter(|s| s.outcome == Outcome::Resumed)
+            .count(),
+        failed.len()
+    );
+    for s in &failed {
+        let _ = writeln!(text, "  {}: {}", s.id, s.error.as_deref().unwrap_or("?"));
+    }
+    let json = match shard {
+        // a shard reports its own cases; `cohort-report` merges them all
+        Some(s) => {
+            let _ = writeln!(
+                text,
+                "shard {}/{} done; merge with `otoatlas cohort-report {}` when every shard is",
+                s.index,
+                s.count,
+                args.out.display()
+            );
+            serde_json::json!({ "shard": [s.index, s.count], "cases": statuses, "passed": failed.is_empty() })
+        }
+        None => {
+            let summary = merge_cohort(&args.out)?;
+            let _ = writeln!(text, "wrote {}", args.out.join("cohort.json").display());
+            summary
+        }
+    };
+    Ok(Report { text, json })
+}
+
+pub fn cohort_report(args: &CohortReportArgs) -> Result<Report, Error> {
+    let summary = merge_cohort(&args.out)?;
+    let counts = &summary["counts"];
+    let text = format!(
+        "{} cases: {} ok, {} failed, {} missing; wrote {}\n",
+        counts["cases"],
+        counts["ok"],
+        counts["failed"],
+        counts["missing"],
+        args.out.join("cohort.json").display()
+    );
+    Ok(Report {
+        text,
+        json: summary,
+    })
+}

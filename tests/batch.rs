@@ -1,0 +1,251 @@
+//! `otoatlas batch` and `cohort-report` end to end on the sample cases: a failing case does not
+//! stop the cohort, shards merge into the same cohort, a batch killed mid-run and resumed gives
+//! the same packages as an uninterrupted one, and the emitted Slurm script is valid shell.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+fn otoatlas() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_otoatlas"));
+    c.arg("--quiet");
+    c
+}
+
+fn samples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_cases")
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// A cohort of the three sample cases in a temporary folder.
+fn sample_cohort(root: &Path) -> PathBuf {
+    let cohort = root.join("cohort");
+    for id in ["case-001", "case-002", "case-003"] {
+        copy_dir(&samples().join(id), &cohort.join(id));
+    }
+    cohort
+}
+
+fn run(cmd: &mut Command) -> Output {
+    cmd.output().expect("otoatlas runs")
+}
+
+fn cohort_json(out: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("cohort.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_failing_case_is_recorded_and_the_others_finish() {
+    let dir = tempfile::tempdir().unwrap();
+    let cohort = sample_cohort(dir.path());
+    // case-002 gets landmarks that are not a landmark file
+    for name in ["landmarks.mrk.json", "landmarks.json", "landmarks.csv"] {
+        let _ = std::fs::remove_file(cohort.join("case-002").join(name));
+    }
+    std::fs::write(cohort.join("case-002/landmarks.fcsv"), "not,a,markup\n").unwrap();
+    let out = dir.path().join("out");
+    let o = run(otoatlas()
+        .args(["batch", "--jobs", "2", "--out"])
+        .arg(&out)
+        .arg(&cohort));
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let summary = cohort_json(&out);
+    assert_eq!(summary["counts"]["ok"], 2);
+    assert_eq!(summary["counts"]["failed"], 1);
+    assert_eq!(summary["passed"], false);
+    let failed = &summary["cases"][1];
+    assert_eq!(failed["id"], "case-002");
+    assert_eq!(failed["outcome"], "failed");
+    assert!(
+        failed["error"].as_str().unwrap().contains("landmarks.fcsv"),
+        "the error names the file: {failed}"
+    );
+    for id in ["case-001", "case-003"] {
+        assert!(out.join("cases").join(id).join("metrics.json").is_file());
+    }
+    assert!(!out.join("cases/case-002/metrics.json").exists());
+}
+
+#[test]
+fn shards_merge_into_the_whole_cohort() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = run(otoatlas()
+        .args(["batch", "--shard", "0/2", "--out"])
+        .arg(&out)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    // one shard alone: the merge names the missing case and fails
+    let o = run(otoatlas().args(["cohort-report", "--json"]).arg(&out));
+    assert_eq!(o.status.code(), Some(1));
+    let partial: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(partial["counts"]["missing"], 1);
+    assert_eq!(partial["cases"][1]["outcome"], "missing");
+    // the other shard from a Slurm array task's environment
+    let o = run(otoatlas()
+        .env("SLURM_ARRAY_TASK_ID", "11")
+        .env("SLURM_ARRAY_TASK_MIN", "10")
+        .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .args(["batch", "--out"])
+        .arg(&out)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    let o = run(otoatlas().args(["cohort-report", "--json"]).arg(&out));
+    assert!(o.status.success(), "{o:?}");
+    let whole: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(whole["counts"]["ok"], 3);
+    let ids: Vec<&str> = whole["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids, ["case-001", "case-002", "case-003"]);
+}
+
+#[test]
+fn the_emitted_slurm_script_is_a_valid_job_array() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("it's a cohort.sbatch");
+    let out = dir.path().join("it's out");
+    let o = run(otoatlas()
+        .args(["batch", "--shards", "2", "--emit-sbatch"])
+        .arg(&script)
+        .arg("--out")
+        .arg(&out)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(text.contains("#SBATCH --array=0-1\n"), "{text}");
+    assert!(
+        out.join("slurm").is_dir(),
+        "the log folder exists before submission"
+    );
+    let check = Command::new("bash")
+        .arg("-n")
+        .arg(&script)
+        .output()
+        .unwrap();
+    assert!(check.status.success(), "bash -n: {check:?}");
+    // the command line the tasks run, word by word as the shell reads it
+    let exec = text.lines().find(|l| l.starts_with("exec ")).unwrap();
+    let words = Command::new("bash")
+        .arg("-c")
+        .arg(format!("set -- {}; printf '%s\\n' \"$@\"", &exec[5..]))
+        .output()
+        .unwrap();
+    let words: Vec<String> = String::from_utf8(words.stdout)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    let out_abs = std::path::absolute(&out).unwrap();
+    let at = words.iter().position(|w| w == "--out").unwrap();
+    assert_eq!(words[at + 1], out_abs.to_string_lossy());
+    assert!(words.contains(&"--resume".to_string()));
+}
+
+/// SHA-256-free comparison: every file of every package, by relative path.
+fn package_files(out: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut files = BTreeMap::new();
+    let mut stack = vec![out.join("cases")];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.components().any(|c| c.as_os_str() == "package") {
+                let relative = path.strip_prefix(out).unwrap().to_path_buf();
+                files.insert(relative, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    files
+}
+
+#[test]
+#[ignore = "needs the patient package (OUT/package), not written by run yet"]
+fn a_killed_batch_resumes_to_the_same_packages() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = dir.path().join("clean");
+    let o = run(otoatlas()
+        .args(["batch", "--jobs", "1", "--out"])
+        .arg(&clean)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    let expected = package_files(&clean);
+    assert!(
+        expected.len() > 3 * 5,
+        "three packages: {:?}",
+        expected.keys()
+    );
+
+    // kill -9 as soon as the first package is in place, while the second case runs
+    let killed = dir.path().join("killed");
+    let mut child = otoatlas()
+        .args(["batch", "--jobs", "1", "--out"])
+        .arg(&killed)
+        .arg(samples())
+        .spawn()
+        .unwrap();
+    let first = killed.join("cases/case-001/package");
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while !first.exists() && Instant::now() < deadline {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let partial = package_files(&killed);
+    assert!(
+        partial.len() < expected.len(),
+        "the batch was killed before it finished"
+    );
+    // what is there is whole: no package folder is half-written
+    for (path, bytes) in &partial {
+        assert_eq!(expected.get(path), Some(bytes), "{}", path.display());
+    }
+
+    let first_status = std::fs::read(killed.join("cases/case-001/status.json")).unwrap();
+    let o = run(otoatlas()
+        .args(["batch", "--jobs", "1", "--resume", "--json", "--out"])
+        .arg(&killed)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    assert_eq!(package_files(&killed), expected);
+    assert_eq!(
+        std::fs::read(killed.join("cases/case-001/status.json")).unwrap(),
+        first_status,
+        "the finished case was not run again"
+    );
+    // a second resume has nothing left to do
+    let o = run(otoatlas()
+        .args(["batch", "--resume", "--json", "--out"])
+        .arg(&killed)
+        .arg(samples()));
+    assert!(o.status.success(), "{o:?}");
+    let summary: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["counts"]["ok"], 3);
+    let status: Value = serde_json::from_str(
+        &std::fs::read_to_string(killed.join("cases/case-002/status.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(status["outcome"], "ok");
+}
