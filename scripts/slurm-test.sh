@@ -49,7 +49,7 @@ host=$(hostname -s)
 mkdir -p "$work/spool" "$work/state" "$work/log"
 cat >"$SLURM_CONF" <<EOF
 ClusterName=otoatlas-test
-SlurmctldHost=$host
+SlurmctldHost=$host(127.0.0.1)
 SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
@@ -66,7 +66,7 @@ SlurmdPidFile=$work/slurmd.pid
 SlurmctldLogFile=$work/log/slurmctld.log
 SlurmdLogFile=$work/log/slurmd.log
 MpiDefault=none
-NodeName=$host CPUs=$(nproc) State=UNKNOWN
+NodeName=$host NodeAddr=127.0.0.1 CPUs=$(nproc) State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=30 State=UP
 EOF
 slurmctld -D -f "$SLURM_CONF" >/dev/null 2>&1 & pids+=($!)
