@@ -1,6 +1,13 @@
 //! Reports a person reads to accept or reject a case or a cohort: charts (SVG), slice overlays
 //! (PNG) and the self-contained HTML page that holds them.
 
+pub mod case;
+pub mod error;
 pub mod html;
+pub mod metrics;
 pub mod overlay;
 pub mod plot;
+pub mod slices;
+
+pub use case::{Accuracy, CaseReportInput, case_report_html};
+pub use error::ReportError;
