@@ -122,6 +122,20 @@ pub fn parse_deform(deform: &Value, case: &str) -> Result<DeformSummary, ReportE
     })
 }
 
+/// Hand-made surface distances for the reports' tests: every field a different number
+/// (ASSD, RMS and the MeshDev mean are MASD + 0.001, 0.002, 0.003; HD and the MeshDev max are
+/// HD95 + 0.3 and + 0.4).
+#[cfg(test)]
+pub(crate) fn distances_json(masd: f64, hd95: f64, bias: f64, dice: f64) -> Value {
+    let directed = serde_json::json!({"samples": 10, "area_mm2": 5.0, "mean": masd,
+        "rms": masd, "max": hd95 + 0.3, "p95": hd95, "within_tolerance_mm2": 5.0 * dice});
+    serde_json::json!({"masd": masd, "assd": masd + 0.001, "rms": masd + 0.002,
+        "hd": hd95 + 0.3, "hd95": hd95, "bias": bias, "surface_dice": dice,
+        "mean_test_to_ref": masd, "mean_ref_to_test": masd, "meshdev_mean": masd + 0.003,
+        "meshdev_max": hd95 + 0.4, "tolerance_mm": 0.25, "test_to_ref": directed,
+        "ref_to_test": directed})
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,6 +2,7 @@
 //! (PNG) and the self-contained HTML page that holds them.
 
 pub mod case;
+pub mod cohort;
 pub mod error;
 pub mod html;
 pub mod metrics;
@@ -10,4 +11,5 @@ pub mod plot;
 pub mod slices;
 
 pub use case::{Accuracy, CaseReportInput, case_report_html};
+pub use cohort::{CohortEntry, CohortReport, cohort_report};
 pub use error::ReportError;

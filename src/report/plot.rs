@@ -198,6 +198,10 @@ pub fn box_plot_svg(
         chart
             .configure_mesh()
             .y_desc(y_label)
+            .x_label_formatter(&|v| match v {
+                SegmentValue::Exact(n) | SegmentValue::CenterOf(n) => n.to_string(),
+                SegmentValue::Last => String::new(),
+            })
             .draw()
             .map_err(|e| err(e.to_string()))?;
         chart
@@ -261,6 +265,9 @@ mod tests {
             &[("malleus".into(), vec![0.1, 0.12, 0.2, 0.15])],
         )
         .unwrap();
-        assert!(svg.contains("malleus"));
+        assert!(
+            svg.contains("\nmalleus\n") && !svg.contains("\"malleus\""),
+            "the group name without quotes: {svg}"
+        );
     }
 }

@@ -10,6 +10,7 @@ use serde_json::{Value, json};
 use super::*;
 use crate::image::{ImageInfo, Volume};
 use crate::register::rigid::SimilarityTransform;
+use crate::report::metrics::distances_json;
 use crate::report::slices::OVERLAY_PIXELS;
 
 struct Fixture {
@@ -22,15 +23,6 @@ struct Fixture {
     scores: Value,
     deform: Value,
     fit: RigidFit,
-}
-
-fn distances(masd: f64, hd95: f64, bias: f64, dice: f64) -> Value {
-    let directed = json!({"samples": 10, "area_mm2": 5.0, "mean": masd, "rms": masd,
-        "max": 2.0 * hd95, "p95": hd95, "within_tolerance_mm2": 5.0 * dice});
-    json!({"masd": masd, "assd": masd, "rms": masd, "hd": 2.0 * hd95, "hd95": hd95,
-        "bias": bias, "surface_dice": dice, "mean_test_to_ref": masd, "mean_ref_to_test": masd,
-        "meshdev_mean": masd, "meshdev_max": 2.0 * hd95, "tolerance_mm": 0.25,
-        "test_to_ref": directed, "ref_to_test": directed})
 }
 
 fn fixture() -> Fixture {
@@ -79,13 +71,13 @@ fn fixture() -> Fixture {
         reference.insert(part.name().to_string(), mesh);
     }
     let scores = json!({
-        "malleus": {"registered": distances(0.045, 0.14, -0.012, 0.978),
-                    "rigid": distances(0.15, 0.35, 0.084, 0.648), "masd_improvement": 0.7},
-        "incus": {"registered": distances(0.033, 0.6, 0.007, 0.993),
-                  "rigid": distances(0.113, 0.247, 0.007, 0.764), "masd_improvement": 0.708},
-        "stapes": {"registered": distances(0.064, 0.235, 0.041, 0.926),
-                   "rigid": distances(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471},
-        "eardrum": {"registered": distances(0.033, 0.137, 0.019, 0.974),
+        "malleus": {"registered": distances_json(0.045, 0.14, -0.012, 0.978),
+                    "rigid": distances_json(0.15, 0.35, 0.084, 0.648), "masd_improvement": 0.7},
+        "incus": {"registered": distances_json(0.033, 0.6, 0.007, 0.993),
+                  "rigid": distances_json(0.113, 0.247, 0.007, 0.764), "masd_improvement": 0.708},
+        "stapes": {"registered": distances_json(0.064, 0.235, 0.041, 0.926),
+                   "rigid": distances_json(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471},
+        "eardrum": {"registered": distances_json(0.033, 0.137, 0.019, 0.974),
                     "rigid": null, "masd_improvement": null},
     });
     let deform = json!({
@@ -209,10 +201,10 @@ fn scored_case_shows_every_section_with_its_numbers() {
     }
     // one row per structure, in anatomical order, rigid and registered side by side
     let rows = [
-        "<tr><td>malleus</td><td>0.150</td><td>0.045</td><td>70 %</td><td>0.350</td><td>0.140</td><td>0.084</td><td>-0.012</td><td>0.648</td><td>0.978</td><td>0.280</td><td>met</td></tr>",
-        "<tr><td>incus</td><td>0.113</td><td>0.033</td><td>71 %</td><td>0.247</td><td>0.600</td><td>0.007</td><td>0.007</td><td>0.764</td><td>0.993</td><td>1.200</td><td>missed</td></tr>",
-        "<tr><td>stapes</td><td>0.121</td><td>0.064</td><td>47 %</td><td>0.388</td><td>0.235</td><td>0.041</td><td>0.041</td><td>0.796</td><td>0.926</td><td>0.470</td><td>met</td></tr>",
-        "<tr><td>eardrum</td><td>–</td><td>0.033</td><td>–</td><td>–</td><td>0.137</td><td>–</td><td>0.019</td><td>–</td><td>0.974</td><td>0.274</td><td>–</td></tr>",
+        "<tr><td>malleus</td><td>0.150</td><td>0.045</td><td>70 %</td><td>0.350</td><td>0.140</td><td>0.084</td><td>-0.012</td><td>0.648</td><td>0.978</td><td>0.440</td><td>met</td></tr>",
+        "<tr><td>incus</td><td>0.113</td><td>0.033</td><td>71 %</td><td>0.247</td><td>0.600</td><td>0.007</td><td>0.007</td><td>0.764</td><td>0.993</td><td>0.900</td><td>missed</td></tr>",
+        "<tr><td>stapes</td><td>0.121</td><td>0.064</td><td>47 %</td><td>0.388</td><td>0.235</td><td>0.041</td><td>0.041</td><td>0.796</td><td>0.926</td><td>0.535</td><td>met</td></tr>",
+        "<tr><td>eardrum</td><td>–</td><td>0.033</td><td>–</td><td>–</td><td>0.137</td><td>–</td><td>0.019</td><td>–</td><td>0.974</td><td>0.437</td><td>–</td></tr>",
     ];
     let at: Vec<usize> = rows
         .iter()
