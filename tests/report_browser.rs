@@ -154,7 +154,9 @@ fn report_renders_in_chromium_with_the_overlays_decoded() {
             .iter()
             .filter(|&&(x, y)| {
                 let grey = (y.saturating_sub(4)..(y + 5).min(height))
-                    .flat_map(|yy| (x.saturating_sub(4)..(x + 5).min(width)).map(move |xx| (xx, yy)))
+                    .flat_map(|yy| {
+                        (x.saturating_sub(4)..(x + 5).min(width)).map(move |xx| (xx, yy))
+                    })
                     .filter(|&(xx, yy)| is_ct_grey(pixels[yy * width + xx]))
                     .count();
                 grey >= 20

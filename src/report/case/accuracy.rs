@@ -112,7 +112,7 @@ pub(super) fn histograms(
         Accuracy::Resumed { .. } => {
             page.paragraph(
                 "This run resumed after the score stage: the per-vertex distances are not in \
-                 memory (they are in registered/deviation/*.ply); rerun from score to plot them.",
+                 memory; rerun from score to plot them.",
                 Some("note"),
             );
             return Ok(());
