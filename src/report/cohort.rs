@@ -84,6 +84,7 @@ pub fn cohort_report(entries: &[CohortEntry]) -> Result<CohortReport, ReportErro
     })
 }
 
+/// The CSV's metrics per stage: fields of `SurfaceDistances`, named as in `metrics.json`.
 const METRICS: [&str; 9] = [
     "masd",
     "assd",
@@ -96,18 +97,18 @@ const METRICS: [&str; 9] = [
     "meshdev_max",
 ];
 
-fn metric_values(d: &SurfaceDistances) -> [f64; 9] {
-    [
-        d.masd,
-        d.assd,
-        d.rms,
-        d.hd,
-        d.hd95,
-        d.bias,
-        d.surface_dice,
-        d.meshdev_mean,
-        d.meshdev_max,
-    ]
+/// The `METRICS` of `d` as CSV fields (empty for a missing or non-finite value).
+fn metric_fields(d: Option<&SurfaceDistances>) -> Vec<String> {
+    let value = d.and_then(|d| serde_json::to_value(d).ok());
+    METRICS
+        .iter()
+        .map(|m| {
+            value
+                .as_ref()
+                .and_then(|v| v[m].as_f64())
+                .map_or(String::new(), |x| x.to_string())
+        })
+        .collect()
 }
 
 /// A CSV field (RFC 4180): quoted when it holds a comma, a quote or a line break.
@@ -134,12 +135,8 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
                 for (name, s) in anatomical_order(scores) {
                     let mut row = lead.to_vec();
                     row.push(field(name));
-                    let rigid = s.rigid.as_ref().map(metric_values);
-                    row.extend(
-                        (0..METRICS.len())
-                            .map(|k| rigid.map_or(String::new(), |values| values[k].to_string())),
-                    );
-                    row.extend(metric_values(&s.registered).iter().map(f64::to_string));
+                    row.extend(metric_fields(s.rigid.as_ref()));
+                    row.extend(metric_fields(Some(&s.registered)));
                     row.push(s.masd_improvement.map_or(String::new(), |i| i.to_string()));
                     row.push(String::new());
                     out += &(row.join(",") + "\n");
