@@ -7,9 +7,10 @@ source scripts/lib.sh
 ensure_build_deps
 ensure_apt python3 python3
 ensure_apt dcmdjpeg dcmtk
+ensure_apt chromium chromium
 python3 -m pip --version >/dev/null 2>&1 || ensure_apt pip python3-pip
 python3 -m pip install --quiet --disable-pip-version-check -r scripts/requirements-test.txt
 bash scripts/fetch-testdata.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
-OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 cargo test --workspace --locked
+OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked

@@ -1,7 +1,8 @@
 //! `run`: one case through every stage — ingest, landmarks, rigid, deform, score, export —
 //! each timed, each leaving its artefact under `OUT/stages/` so that `--from STAGE` resumes
 //! from what the earlier stages wrote. Outputs (`OUT/registered/`, `metrics.json`,
-//! `timings.json`) are written atomically, file by file, only after the stages succeeded.
+//! `report.html`, `timings.json`) are written atomically, file by file, only after the stages
+//! succeeded.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -27,6 +28,7 @@ use crate::register::landmarks::{
     LandmarkFile, PromptInput, check_landmarks, prompt_landmarks, read_landmarks, write_json,
 };
 use crate::register::rigid::RigidFit;
+use crate::report::{Accuracy, CaseReportInput, case_report_html};
 use crate::{Error, progress};
 
 /// What `run` is asked to do besides the case and the configuration.
@@ -295,11 +297,12 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     progress::case_stage(&case.id, Stage::Score.name());
     // score (with a segmentation)
     let t = Instant::now();
+    let mut reference = None;
     let scores = match &case.segmentation {
         Some(seg) if opts.from <= Stage::Score => {
-            let reference = Reference::load(seg, &config.ingest)?;
-            let rigid = score(&atlas, &placed, &reference, step)?;
-            let registered = score(&atlas, &nodes, &reference, step)?;
+            let reference = reference.insert(Reference::load(seg, &config.ingest)?);
+            let rigid = score(&atlas, &placed, reference, step)?;
+            let registered = score(&atlas, &nodes, reference, step)?;
             let value = scores_json(&rigid, &registered);
             write_json_file(&artefact_path(out, Stage::Score), &value)?;
             timings.push((Stage::Score, t.elapsed().as_secs_f64()));
@@ -359,6 +362,39 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         "scores": scores.as_ref().map(|(v, _)| v.clone()),
     });
     write_json_file(&out.join("metrics.json"), &metrics)?;
+    let stage_times: Vec<(&str, f64)> = timings.iter().map(|(s, t)| (s.name(), *t)).collect();
+    let report = CaseReportInput {
+        case_id: &case.id,
+        image: &loaded,
+        sampler: &sampler,
+        side,
+        side_source,
+        atlas: &atlas,
+        fit: &fit,
+        rigid_nodes: &placed,
+        registered_nodes: &nodes,
+        deform: &deform_json,
+        accuracy: match (&scores, &reference) {
+            (None, _) => Accuracy::NoSegmentation,
+            (Some((value, _)), None) => Accuracy::Resumed { scores: value },
+            (Some((value, per_structure)), Some(reference)) => Accuracy::Scored {
+                scores: value,
+                deviation: per_structure
+                    .iter()
+                    .map(|(name, s)| (name.as_str(), s.deviation.as_slice()))
+                    .collect(),
+                reference: &reference.surfaces,
+            },
+        },
+        timings: &stage_times,
+        total_seconds: started.elapsed().as_secs_f64(),
+    };
+    let report_path = out.join("report.html");
+    let html = case_report_html(&report).map_err(|e| Error::Io {
+        path: report_path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    write_atomic(&report_path, html.as_bytes())?;
     let mut timing_map = serde_json::Map::new();
     for (s, secs) in &timings {
         timing_map.insert(s.name().into(), json!(secs));

@@ -29,9 +29,10 @@ const STYLE: &str = "body{font-family:sans-serif;margin:24px;color:#222;max-widt
 h1{font-size:22px}h2{font-size:18px;border-bottom:1px solid #ccc;padding-bottom:4px;margin-top:28px}\
 table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}\
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}\
-.figs{display:flex;flex-wrap:wrap;gap:12px}.figs figure{margin:0}\
+.figs{display:flex;flex-wrap:wrap;gap:12px}.figs figure{margin:0;width:min-content}\
 figcaption{font-size:12px;color:#555;text-align:center}.bad{color:#b00;font-weight:bold}\
-.ok{color:#070;font-weight:bold}.note{font-size:13px;color:#555}";
+.ok{color:#070;font-weight:bold}.note{font-size:13px;color:#555}\
+.swatch{display:inline-block;width:24px;height:4px;margin:0 6px 3px 16px}";
 
 impl Page {
     pub fn new(title: &str) -> Page {
@@ -60,8 +61,17 @@ impl Page {
         self
     }
 
-    /// A table: a header row and rows of cells (escaped).
+    /// A table: a header row and rows of text cells (escaped).
     pub fn table(&mut self, header: &[&str], rows: &[Vec<String>]) -> &mut Self {
+        let rows: Vec<Vec<Cell>> = rows
+            .iter()
+            .map(|row| row.iter().map(|c| Cell::Text(c.clone())).collect())
+            .collect();
+        self.table_cells(header, &rows)
+    }
+
+    /// A table whose cells may be links.
+    pub fn table_cells(&mut self, header: &[&str], rows: &[Vec<Cell>]) -> &mut Self {
         self.body.push_str("<table><tr>");
         for h in header {
             self.body.push_str(&format!("<th>{}</th>", escape(h)));
@@ -70,11 +80,30 @@ impl Page {
         for row in rows {
             self.body.push_str("<tr>");
             for cell in row {
-                self.body.push_str(&format!("<td>{}</td>", escape(cell)));
+                let inner = match cell {
+                    Cell::Text(text) => escape(text),
+                    Cell::Link { href, text } => {
+                        format!("<a href=\"{}\">{}</a>", escape(href), escape(text))
+                    }
+                };
+                self.body.push_str(&format!("<td>{inner}</td>"));
             }
             self.body.push_str("</tr>\n");
         }
         self.body.push_str("</table>\n");
+        self
+    }
+
+    /// A colour legend: a short bar of each colour followed by its label.
+    pub fn legend(&mut self, entries: &[(&str, [u8; 3])]) -> &mut Self {
+        self.body.push_str("<p class=\"legend\">");
+        for (label, [r, g, b]) in entries {
+            self.body.push_str(&format!(
+                "<span class=\"swatch\" style=\"background:rgb({r},{g},{b})\"></span>{}",
+                escape(label)
+            ));
+        }
+        self.body.push_str("</p>\n");
         self
     }
 
@@ -115,6 +144,12 @@ pub enum FigureContent {
     Png(Vec<u8>),
 }
 
+/// A table cell: text, or a link (relative, e.g. to a case's report).
+pub enum Cell {
+    Text(String),
+    Link { href: String, text: String },
+}
+
 /// A captioned figure.
 pub struct Figure {
     pub caption: String,
@@ -133,6 +168,13 @@ mod tests {
                 &["structure", "MASD (mm)"],
                 &[vec!["malleus & co".into(), "0.100".into()]],
             )
+            .table_cells(
+                &["case"],
+                &[vec![Cell::Link {
+                    href: "a b/report.html".into(),
+                    text: "case \"a\"".into(),
+                }]],
+            )
             .figures(&[Figure {
                 caption: "png".into(),
                 content: FigureContent::Png(vec![1, 2, 3]),
@@ -141,6 +183,7 @@ mod tests {
         assert!(html.contains("<title>case &lt;01&gt;</title>"));
         assert!(html.contains("malleus &amp; co"));
         assert!(html.contains("data:image/png;base64,AQID"));
+        assert!(html.contains("<a href=\"a b/report.html\">case &quot;a&quot;</a>"));
         assert!(!html.contains("http"), "no external resource");
     }
 }

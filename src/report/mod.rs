@@ -1,6 +1,15 @@
 //! Reports a person reads to accept or reject a case or a cohort: charts (SVG), slice overlays
 //! (PNG) and the self-contained HTML page that holds them.
 
+pub mod case;
+pub mod cohort;
+pub mod error;
 pub mod html;
+pub mod metrics;
 pub mod overlay;
 pub mod plot;
+pub mod slices;
+
+pub use case::{Accuracy, CaseReportInput, case_report_html};
+pub use cohort::{CohortEntry, CohortReport, cohort_report};
+pub use error::ReportError;

@@ -75,6 +75,21 @@ pub fn histogram_svg(
     Ok(svg)
 }
 
+/// An axis label with three significant digits and no trailing zeros (a log axis's ticks are
+/// products like 0.30000000000000004).
+fn significant(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    let text = format!("{v:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
 /// One named curve of (x, y) points.
 pub struct Series<'a> {
     pub name: &'a str,
@@ -130,6 +145,7 @@ pub fn line_chart_svg(
                     .configure_mesh()
                     .x_desc(x_label)
                     .y_desc(y_label)
+                    .y_label_formatter(&|v| significant(*v))
                     .draw()
                     .map_err(|e| err(e.to_string()))?;
                 for s in series {
@@ -198,6 +214,10 @@ pub fn box_plot_svg(
         chart
             .configure_mesh()
             .y_desc(y_label)
+            .x_label_formatter(&|v| match v {
+                SegmentValue::Exact(n) | SegmentValue::CenterOf(n) => n.to_string(),
+                SegmentValue::Last => String::new(),
+            })
             .draw()
             .map_err(|e| err(e.to_string()))?;
         chart
@@ -240,6 +260,15 @@ mod tests {
     }
 
     #[test]
+    fn axis_labels_keep_three_significant_digits() {
+        assert_eq!(significant(0.30000000000000004), "0.3");
+        assert_eq!(significant(0.000123456), "0.000123");
+        assert_eq!(significant(12.5), "12.5");
+        assert_eq!(significant(1500.0), "1500");
+        assert_eq!(significant(-0.25), "-0.25");
+    }
+
+    #[test]
     fn line_chart_and_box_plot_render() {
         let pts = [(1.0, 1.0), (2.0, 0.1), (3.0, 0.01)];
         let svg = line_chart_svg(
@@ -261,6 +290,9 @@ mod tests {
             &[("malleus".into(), vec![0.1, 0.12, 0.2, 0.15])],
         )
         .unwrap();
-        assert!(svg.contains("malleus"));
+        assert!(
+            svg.contains("\nmalleus\n") && !svg.contains("\"malleus\""),
+            "the group name without quotes: {svg}"
+        );
     }
 }

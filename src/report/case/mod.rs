@@ -1,0 +1,184 @@
+//! The per-case report `run` writes as `OUT/report.html`: the page a clinical engineer reads to
+//! accept or reject a registration. One self-contained file (charts as inline SVG, slices as
+//! inline PNG, no script, no network reference) with, in order: a verdict against the
+//! registration targets (mechanics-metrics.md §0.2), the case summary (image geometry, side,
+//! atlas, landmark residuals, rigid scale, deformable status, timings), the surface distances
+//! per structure (rigid fit and registration, definitions of §0.2), the slice overlays, the
+//! histograms of signed distances and the convergence curve of the deformable stage.
+
+use std::collections::BTreeMap;
+
+use nalgebra::Point3;
+use plotters::style::RGBColor;
+use serde_json::Value;
+
+mod accuracy;
+mod summary;
+
+use accuracy::{histograms, metrics_table};
+use summary::{summary, verdict};
+
+use super::error::ReportError;
+use super::html::{Figure, FigureContent, Page};
+use super::metrics::{DeformSummary, parse_deform, parse_scores};
+use super::plot::{Series, line_chart_svg};
+use super::slices::{
+    OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR, overlay_figures,
+};
+use crate::atlas::{Atlas, Part};
+use crate::ear::Side;
+use crate::image::{LoadedImage, Sampler};
+use crate::mesh::TriMesh;
+use crate::register::rigid::RigidFit;
+
+/// What the accuracy sections can show.
+pub enum Accuracy<'a> {
+    /// The case has no manual segmentation.
+    NoSegmentation,
+    /// `run --from` started after the score stage: the scores come from the earlier run's
+    /// artefact; the per-vertex deviations and the segmentation's surfaces are not in memory.
+    Resumed { scores: &'a Value },
+    /// Scored in this run.
+    Scored {
+        /// The `scores` object of `metrics.json`.
+        scores: &'a Value,
+        /// Per structure: the signed distance of each registered-surface vertex [mm], in the
+        /// vertex order of `Atlas::part_surface`.
+        deviation: BTreeMap<&'a str, &'a [f64]>,
+        /// The segmentation's surfaces by structure name.
+        reference: &'a BTreeMap<String, TriMesh>,
+    },
+}
+
+/// Everything the case report shows.
+pub struct CaseReportInput<'a> {
+    pub case_id: &'a str,
+    pub image: &'a LoadedImage,
+    pub sampler: &'a Sampler<'a>,
+    pub side: Side,
+    /// Where the side came from ("--side", "landmark file", "DICOM laterality").
+    pub side_source: &'a str,
+    pub atlas: &'a Atlas,
+    pub fit: &'a RigidFit,
+    /// Atlas nodes after the rigid fit and after the deformable registration.
+    pub rigid_nodes: &'a [Point3<f64>],
+    pub registered_nodes: &'a [Point3<f64>],
+    /// The deformable stage's record (`metrics.json`'s `deform`).
+    pub deform: &'a Value,
+    pub accuracy: Accuracy<'a>,
+    /// Seconds per stage run, and the whole run so far.
+    pub timings: &'a [(&'a str, f64)],
+    pub total_seconds: f64,
+}
+
+pub(super) fn mm(v: f64) -> String {
+    format!("{v:.3}")
+}
+
+fn surfaces(atlas: &Atlas, nodes: &[Point3<f64>]) -> BTreeMap<String, TriMesh> {
+    Part::STRUCTURES
+        .into_iter()
+        .filter(|p| !atlas.labels_of(*p).is_empty())
+        .map(|p| (p.name().to_string(), atlas.part_surface(p, nodes)))
+        .collect()
+}
+
+/// The page as one HTML document.
+pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> {
+    let deform = parse_deform(input.deform, input.case_id)?;
+    let scores = match &input.accuracy {
+        Accuracy::NoSegmentation => None,
+        Accuracy::Resumed { scores } | Accuracy::Scored { scores, .. } => {
+            Some(parse_scores(scores, input.case_id)?)
+        }
+    };
+    let rigid = surfaces(input.atlas, input.rigid_nodes);
+    let registered = surfaces(input.atlas, input.registered_nodes);
+    let mut page = Page::new(&format!("otoatlas case report: {}", input.case_id));
+    verdict(&mut page, &deform, scores.as_ref());
+    summary(&mut page, input, &deform);
+    metrics_table(&mut page, input, scores.as_ref());
+
+    page.heading("Slice overlays");
+    let reference = match &input.accuracy {
+        Accuracy::Scored { reference, .. } => Some(*reference),
+        _ => None,
+    };
+    let mut legend = vec![
+        ("atlas after the rigid fit", RIGID_COLOUR),
+        ("atlas after the deformable registration", REGISTERED_COLOUR),
+    ];
+    if reference.is_some() {
+        legend.push(("manual segmentation", SEGMENTATION_COLOUR));
+    }
+    page.legend(&legend);
+    match &input.accuracy {
+        Accuracy::NoSegmentation => page.paragraph(
+            "The case has no manual segmentation: the overlays show the two atlas contours.",
+            Some("note"),
+        ),
+        Accuracy::Resumed { .. } => page.paragraph(
+            "This run resumed after the score stage: the segmentation's contours are not \
+             drawn (rerun from score to see them).",
+            Some("note"),
+        ),
+        Accuracy::Scored { .. } => &mut page,
+    };
+    let overlay = OverlaySurfaces {
+        rigid: &rigid,
+        registered: &registered,
+        segmentation: reference,
+    };
+    for (_, figures) in overlay_figures(input.sampler, &overlay)? {
+        page.figures(&figures);
+    }
+
+    histograms(&mut page, input, &registered)?;
+    convergence(&mut page, &deform)?;
+    Ok(page.finish())
+}
+
+fn convergence(page: &mut Page, deform: &DeformSummary) -> Result<(), ReportError> {
+    page.heading("Convergence of the deformable registration");
+    let offset: Vec<(f64, f64)> = deform
+        .history
+        .iter()
+        .map(|i| (i.iteration as f64, i.mean_offset_mm))
+        .collect();
+    let update: Vec<(f64, f64)> = deform
+        .history
+        .iter()
+        .map(|i| (i.iteration as f64, i.p99_update_mm))
+        .collect();
+    let svg = line_chart_svg(
+        "deformable registration",
+        "iteration",
+        "mm",
+        &[
+            Series {
+                name: "mean border offset",
+                points: &offset,
+                color: RGBColor(200, 30, 30),
+            },
+            Series {
+                name: "99th percentile nodal update",
+                points: &update,
+                color: RGBColor(30, 90, 200),
+            },
+        ],
+        true,
+    )?;
+    page.figures(&[Figure {
+        caption: format!(
+            "mean distance from the atlas surface to the image border found by the probes, and \
+             the 99th percentile of the nodal updates, per iteration ({}, {} iterations)",
+            deform.status,
+            deform.history.len()
+        ),
+        content: FigureContent::Svg(svg),
+    }]);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,158 @@
+//! The top of the case report: the verdicts a reader checks first (did the deformable stage
+//! converge, do the ossicles meet the registration targets of mechanics-metrics.md §0.2) and
+//! the case summary: image geometry, side and its source, atlas, landmark residuals of the
+//! rigid fit, rigid scale, deformable status and the time of each stage.
+
+use std::collections::BTreeMap;
+
+use super::{CaseReportInput, mm};
+use crate::atlas::Part;
+use crate::ear::LandmarkName;
+use crate::report::html::Page;
+use crate::report::metrics::{DeformSummary, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics};
+
+/// The one-line verdicts a reader checks first.
+pub(super) fn verdict(
+    page: &mut Page,
+    deform: &DeformSummary,
+    scores: Option<&BTreeMap<String, StructureMetrics>>,
+) {
+    page.heading("Verdict");
+    match deform.status.as_str() {
+        "converged" => page.paragraph("The deformable registration converged.", Some("ok")),
+        other => page.paragraph(
+            &format!(
+                "The deformable registration did not converge ({other}{}): check the overlays.",
+                deform
+                    .message
+                    .as_deref()
+                    .map(|m| format!(": {m}"))
+                    .unwrap_or_default()
+            ),
+            Some("bad"),
+        ),
+    };
+    let Some(scores) = scores else {
+        page.paragraph(
+            "No manual segmentation: accuracy cannot be measured; judge the overlays.",
+            Some("note"),
+        );
+        return;
+    };
+    let bones: Vec<(&str, &StructureMetrics)> = Part::BONES
+        .iter()
+        .filter_map(|p| scores.get(p.name()).map(|s| (p.name(), s)))
+        .collect();
+    let missed: Vec<&str> = bones
+        .iter()
+        .filter(|(_, s)| !s.meets_targets())
+        .map(|(n, _)| *n)
+        .collect();
+    let targets = format!("MASD ≤ {MASD_TARGET_MM} mm and HD95 ≤ {HD95_TARGET_MM} mm");
+    if missed.is_empty() {
+        page.paragraph(
+            &format!(
+                "All {} scored ossicles meet the targets ({targets}).",
+                bones.len()
+            ),
+            Some("ok"),
+        );
+    } else {
+        page.paragraph(
+            &format!("Missing the targets ({targets}): {}.", missed.join(", ")),
+            Some("bad"),
+        );
+    }
+}
+
+/// The direction each voxel axis points to, as LPS letters (e.g. "LPS"), "oblique" marked.
+fn orientation_code(direction: &nalgebra::Matrix3<f64>) -> String {
+    let mut code = String::new();
+    let mut oblique = false;
+    for col in direction.column_iter() {
+        let (axis, v) = (0..3)
+            .map(|a| (a, col[a]))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .unwrap_or((0, 0.0));
+        oblique |= v.abs() < 0.999;
+        let letters = [("L", "R"), ("P", "A"), ("S", "I")][axis];
+        code.push_str(if v >= 0.0 { letters.0 } else { letters.1 });
+    }
+    if oblique {
+        code.push_str(" (oblique)");
+    }
+    code
+}
+
+pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformSummary) {
+    let v = &input.image.volume;
+    let [nx, ny, nz] = v.dims;
+    let [sx, sy, sz] = v.spacing;
+    let d = v.direction_row_major();
+    let rows = [
+        (
+            "image",
+            format!(
+                "{} ({})",
+                input.image.info.format, input.image.info.modality
+            ),
+        ),
+        ("voxels", format!("{nx} × {ny} × {nz}")),
+        ("spacing (mm)", format!("{sx:.3} × {sy:.3} × {sz:.3}")),
+        (
+            "field of view (mm)",
+            format!(
+                "{:.1} × {:.1} × {:.1}",
+                nx as f64 * sx,
+                ny as f64 * sy,
+                nz as f64 * sz
+            ),
+        ),
+        (
+            "voxel axes i, j, k point to",
+            orientation_code(&v.direction),
+        ),
+        (
+            "direction (rows, LPS)",
+            format!(
+                "[{:.3} {:.3} {:.3}; {:.3} {:.3} {:.3}; {:.3} {:.3} {:.3}]",
+                d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]
+            ),
+        ),
+        (
+            "origin (LPS mm)",
+            format!("{:.2}, {:.2}, {:.2}", v.origin.x, v.origin.y, v.origin.z),
+        ),
+        (
+            "side",
+            format!("{} (from the {})", input.side.as_str(), input.side_source),
+        ),
+        ("atlas", input.atlas.name.clone()),
+        ("rigid scale", format!("{:.4}", input.fit.transform.scale)),
+        (
+            "deformable stage",
+            format!("{}, {} iterations", deform.status, deform.history.len()),
+        ),
+    ];
+    page.heading("Case summary").table(
+        &["item", "value"],
+        &rows.map(|(k, v)| vec![k.to_string(), v]),
+    );
+    for warning in &input.image.info.warnings {
+        page.paragraph(&format!("ingest: {warning}"), Some("note"));
+    }
+    let mut landmarks: Vec<Vec<String>> = LandmarkName::ALL
+        .iter()
+        .zip(&input.fit.residuals_mm)
+        .map(|(n, r)| vec![n.key().to_string(), mm(*r)])
+        .collect();
+    landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm)]);
+    page.table(&["landmark", "rigid-fit residual (mm)"], &landmarks);
+    let mut timings: Vec<Vec<String>> = input
+        .timings
+        .iter()
+        .map(|(stage, s)| vec![stage.to_string(), format!("{s:.2}")])
+        .collect();
+    timings.push(vec!["total".into(), format!("{:.2}", input.total_seconds)]);
+    page.table(&["stage", "time (s)"], &timings);
+}

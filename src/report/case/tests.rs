@@ -1,0 +1,279 @@
+//! The case report on a synthetic case: the embedded atlas on a striped volume, a
+//! "segmentation" that is the atlas moved by 0.1 mm, and hand-made scores.
+
+use std::collections::BTreeMap;
+
+use base64::Engine;
+use nalgebra::{Matrix3, Point3, Vector3};
+use serde_json::{Value, json};
+
+use super::*;
+use crate::image::{ImageInfo, Volume};
+use crate::register::rigid::SimilarityTransform;
+use crate::report::metrics::distances_json;
+use crate::report::slices::OVERLAY_PIXELS;
+
+struct Fixture {
+    atlas: Atlas,
+    image: LoadedImage,
+    rigid: Vec<Point3<f64>>,
+    registered: Vec<Point3<f64>>,
+    reference: BTreeMap<String, TriMesh>,
+    deviation: BTreeMap<String, Vec<f64>>,
+    scores: Value,
+    deform: Value,
+    fit: RigidFit,
+}
+
+fn fixture() -> Fixture {
+    let atlas = crate::atlas::default_atlas().unwrap();
+    let registered = atlas.nodes().to_vec();
+    let shift = |d: Vector3<f64>| registered.iter().map(|p| p + d).collect::<Vec<_>>();
+    let rigid = shift(Vector3::new(0.3, 0.0, 0.0));
+    let truth = shift(Vector3::new(0.0, 0.1, 0.0));
+    let (mut lo, mut hi) = (registered[0], registered[0]);
+    for p in &registered {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let spacing = 0.25;
+    let dims = ((hi - lo) / spacing).map(|e| e.ceil() as usize + 17);
+    let dims = [dims.x, dims.y, dims.z];
+    let data = (0..dims[0] * dims[1] * dims[2])
+        .map(|n| ((n % dims[0] + n / dims[0]) % 20) as f32 * 150.0 - 1000.0)
+        .collect();
+    let image = LoadedImage {
+        volume: Volume {
+            dims,
+            spacing: [spacing; 3],
+            origin: lo.coords - Vector3::repeat(2.0),
+            direction: Matrix3::identity(),
+            data,
+        },
+        info: ImageInfo {
+            format: "nifti1".into(),
+            modality: "CT".into(),
+            transfer_syntax: String::new(),
+            transfer_syntax_name: String::new(),
+            slices: dims[2],
+            files: 1,
+            series_uid_sha256: None,
+            laterality: None,
+            warnings: vec!["qform used".into()],
+            notes: vec![],
+        },
+    };
+    let mut reference = BTreeMap::new();
+    let mut deviation = BTreeMap::new();
+    for part in Part::STRUCTURES {
+        let mesh = atlas.part_surface(part, &truth);
+        deviation.insert(part.name().to_string(), vec![0.1; mesh.vertices.len()]);
+        reference.insert(part.name().to_string(), mesh);
+    }
+    let scores = json!({
+        "malleus": {"registered": distances_json(0.045, 0.14, -0.012, 0.978),
+                    "rigid": distances_json(0.15, 0.35, 0.084, 0.648), "masd_improvement": 0.7},
+        "incus": {"registered": distances_json(0.033, 0.6, 0.007, 0.993),
+                  "rigid": distances_json(0.113, 0.247, 0.007, 0.764), "masd_improvement": 0.708},
+        "stapes": {"registered": distances_json(0.064, 0.235, 0.041, 0.926),
+                   "rigid": distances_json(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471},
+        "eardrum": {"registered": distances_json(0.033, 0.137, 0.019, 0.974),
+                    "rigid": null, "masd_improvement": null},
+    });
+    let deform = json!({
+        "status": {"status": "converged"},
+        "iterations": 3,
+        "history": (1..=3).map(|i| json!({"iteration": i, "mean_offset_mm": 0.3 / i as f64,
+            "p99_update_mm": 0.2 / (i * i) as f64})).collect::<Vec<_>>(),
+    });
+    let fit = RigidFit {
+        transform: SimilarityTransform::new(Matrix3::identity(), Vector3::zeros(), 1.0476),
+        residuals_mm: vec![0.078, 0.061, 0.085],
+        rms_mm: 0.075,
+    };
+    Fixture {
+        atlas,
+        image,
+        rigid,
+        registered,
+        reference,
+        deviation,
+        scores,
+        deform,
+        fit,
+    }
+}
+
+fn html(f: &Fixture, accuracy: Accuracy) -> String {
+    let sampler = Sampler::new(&f.image.volume).unwrap();
+    case_report_html(&CaseReportInput {
+        case_id: "case-<7>",
+        image: &f.image,
+        sampler: &sampler,
+        side: Side::Right,
+        side_source: "landmark file",
+        atlas: &f.atlas,
+        fit: &f.fit,
+        rigid_nodes: &f.rigid,
+        registered_nodes: &f.registered,
+        deform: &f.deform,
+        accuracy,
+        timings: &[("ingest", 0.5), ("deform", 1.25)],
+        total_seconds: 2.0,
+    })
+    .unwrap()
+}
+
+/// The inline PNGs, decoded: (width, height, RGB pixels).
+fn pngs(html: &str) -> Vec<(u32, u32, Vec<[u8; 3]>)> {
+    html.split("data:image/png;base64,")
+        .skip(1)
+        .map(|rest| {
+            let b64 = &rest[..rest.find('"').unwrap()];
+            let bytes = base64::engine::general_purpose::STANDARD
+                .decode(b64)
+                .unwrap();
+            let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
+                .read_info()
+                .unwrap();
+            let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+            let info = reader.next_frame(&mut buf).unwrap();
+            assert_eq!(info.color_type, png::ColorType::Rgb);
+            let pixels = buf[..info.buffer_size()]
+                .chunks(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            (info.width, info.height, pixels)
+        })
+        .collect()
+}
+
+fn count(images: &[(u32, u32, Vec<[u8; 3]>)], colour: [u8; 3]) -> usize {
+    images
+        .iter()
+        .flat_map(|i| i.2.iter())
+        .filter(|p| **p == colour)
+        .count()
+}
+
+fn is_self_contained(html: &str) {
+    for needle in ["<script", "<link", "<iframe", "url(", "@import", "href="] {
+        assert!(!html.contains(needle), "{needle}");
+    }
+    assert_eq!(
+        html.matches(" src=\"").count(),
+        html.matches(" src=\"data:image/png;base64,").count(),
+        "every image inline"
+    );
+    assert!(html.contains("<title>otoatlas case report: case-&lt;7&gt;</title>"));
+}
+
+#[test]
+fn scored_case_shows_every_section_with_its_numbers() {
+    let f = fixture();
+    let html = html(
+        &f,
+        Accuracy::Scored {
+            scores: &f.scores,
+            deviation: f
+                .deviation
+                .iter()
+                .map(|(n, d)| (n.as_str(), d.as_slice()))
+                .collect(),
+            reference: &f.reference,
+        },
+    );
+    is_self_contained(&html);
+    // summary: geometry, side, landmarks, scale, deformable stage, timings, ingest warnings
+    for needle in [
+        "<td>0.250 × 0.250 × 0.250</td>",
+        "<td>LPS</td>",
+        "<td>right (from the landmark file)</td>",
+        "<td>incudostapedial</td><td>0.085</td>",
+        "<td>RMS</td><td>0.075</td>",
+        "<td>1.0476</td>",
+        "<td>converged, 3 iterations</td>",
+        "<td>deform</td><td>1.25</td>",
+        "<td>total</td><td>2.00</td>",
+        "ingest: qform used",
+    ] {
+        assert!(html.contains(needle), "{needle}");
+    }
+    // one row per structure, in anatomical order, rigid and registered side by side
+    let rows = [
+        "<tr><td>malleus</td><td>0.150</td><td>0.045</td><td>70 %</td><td>0.350</td><td>0.140</td><td>0.084</td><td>-0.012</td><td>0.648</td><td>0.978</td><td>0.440</td><td>met</td></tr>",
+        "<tr><td>incus</td><td>0.113</td><td>0.033</td><td>71 %</td><td>0.247</td><td>0.600</td><td>0.007</td><td>0.007</td><td>0.764</td><td>0.993</td><td>0.900</td><td>missed</td></tr>",
+        "<tr><td>stapes</td><td>0.121</td><td>0.064</td><td>47 %</td><td>0.388</td><td>0.235</td><td>0.041</td><td>0.041</td><td>0.796</td><td>0.926</td><td>0.535</td><td>met</td></tr>",
+        "<tr><td>eardrum</td><td>–</td><td>0.033</td><td>–</td><td>–</td><td>0.137</td><td>–</td><td>0.019</td><td>–</td><td>0.974</td><td>0.437</td><td>–</td></tr>",
+    ];
+    let at: Vec<usize> = rows
+        .iter()
+        .map(|r| html.find(r).unwrap_or_else(|| panic!("{r}")))
+        .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "anatomical order");
+    assert!(html.contains("Missing the targets (MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm): incus."));
+    // four histograms and the convergence curve
+    assert_eq!(html.matches("<svg").count(), 5);
+    assert!(html.contains("99th percentile nodal update"));
+    // nine overlays that decode to the expected size, with the three contours
+    let images = pngs(&html);
+    assert_eq!(images.len(), 9);
+    for (w, h, _) in &images {
+        assert_eq!((*w, *h), (OVERLAY_PIXELS as u32, OVERLAY_PIXELS as u32));
+    }
+    for colour in [RIGID_COLOUR, REGISTERED_COLOUR, SEGMENTATION_COLOUR] {
+        assert!(count(&images, colour) > 500, "{colour:?}");
+    }
+    let grey = images
+        .iter()
+        .flat_map(|i| i.2.iter())
+        .filter(|p| p[0] == p[1] && p[1] == p[2] && p[0] > 0 && p[0] < 255)
+        .count();
+    assert!(
+        grey > 9 * OVERLAY_PIXELS * OVERLAY_PIXELS / 2,
+        "CT grey: {grey}"
+    );
+}
+
+#[test]
+fn without_a_segmentation_the_page_says_so_and_shows_the_atlas_contours() {
+    let f = fixture();
+    let html = html(&f, Accuracy::NoSegmentation);
+    is_self_contained(&html);
+    assert!(html.contains("The case has no manual segmentation: no surface distances."));
+    assert!(html.contains("The case has no manual segmentation: no distances."));
+    assert!(!html.contains("<td>malleus</td>"));
+    assert_eq!(
+        html.matches("<svg").count(),
+        1,
+        "the convergence curve only"
+    );
+    let images = pngs(&html);
+    assert_eq!(images.len(), 9);
+    assert!(count(&images, RIGID_COLOUR) > 500);
+    assert!(count(&images, REGISTERED_COLOUR) > 500);
+    assert_eq!(count(&images, SEGMENTATION_COLOUR), 0);
+}
+
+#[test]
+fn a_run_resumed_past_score_shows_the_stored_scores_and_says_what_is_missing() {
+    let f = fixture();
+    let html = html(&f, Accuracy::Resumed { scores: &f.scores });
+    is_self_contained(&html);
+    assert!(html.contains("<tr><td>stapes</td><td>0.121</td><td>0.064</td>"));
+    assert!(html.contains("the distances below are the earlier run&#39;s"));
+    assert!(html.contains("the per-vertex distances are not in memory"));
+    assert_eq!(html.matches("<svg").count(), 1);
+    assert_eq!(count(&pngs(&html), SEGMENTATION_COLOUR), 0);
+}
+
+#[test]
+fn a_deformable_stage_that_stopped_early_is_flagged() {
+    let mut f = fixture();
+    f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
+    let html = html(&f, Accuracy::NoSegmentation);
+    assert!(html.contains(
+        "<p class=\"bad\">The deformable registration did not converge (inversion_guard: \
+         element 7 inverted): check the overlays.</p>"
+    ));
+}
