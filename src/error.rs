@@ -37,6 +37,12 @@ pub enum Error {
     Phantom(#[from] crate::phantom::PhantomError),
     #[error(transparent)]
     Mechanics(#[from] crate::mechanics::MechanicsError),
+    #[error("{path}: cannot write the report: {source}")]
+    Report {
+        path: PathBuf,
+        #[source]
+        source: crate::report::ReportError,
+    },
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -68,7 +74,7 @@ impl Error {
                 crate::mechanics::MechanicsError::InvalidOption { .. } => ExitStatus::BadInput,
                 _ => ExitStatus::CaseFailed,
             },
-            Error::Io { .. } | Error::MeshDev(_) => ExitStatus::CaseFailed,
+            Error::Io { .. } | Error::MeshDev(_) | Error::Report { .. } => ExitStatus::CaseFailed,
         }
     }
 }

@@ -79,6 +79,36 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
         assert!(out.join("cases").join(id).join("metrics.json").is_file());
     }
     assert!(!out.join("cases/case-002/metrics.json").exists());
+    // the cohort report links the finished cases and names the failure
+    let html = std::fs::read_to_string(out.join("cohort.html")).unwrap();
+    assert!(html.contains("cases/case-001/report.html"), "{html}");
+    assert!(html.contains("case-002") && html.contains("landmarks.fcsv"));
+    let csv = std::fs::read_to_string(out.join("cohort.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    let header: Vec<&str> = rows[0].split(',').collect();
+    let masd = header.iter().position(|h| *h == "registered_masd").unwrap();
+    for id in ["case-001", "case-003"] {
+        let metrics: Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("cases").join(id).join("metrics.json")).unwrap(),
+        )
+        .unwrap();
+        let expected = metrics["scores"]["stapes"]["registered"]["masd"]
+            .as_f64()
+            .unwrap();
+        let row = rows
+            .iter()
+            .find(|r| r.starts_with(id) && r.contains(",stapes,"))
+            .unwrap_or_else(|| panic!("no stapes row for {id} in {csv}"));
+        let value: f64 = row.split(',').nth(masd).unwrap().parse().unwrap();
+        assert!(
+            (value - expected).abs() < 1e-9,
+            "{id}: {value} vs {expected}"
+        );
+    }
+    assert!(
+        rows.iter()
+            .any(|r| r.starts_with("case-002") && r.contains("failed"))
+    );
 }
 
 #[test]

@@ -169,7 +169,11 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
         }
         None => {
             let summary = merge_cohort(&args.out)?;
-            let _ = writeln!(text, "wrote {}", args.out.join("cohort.json").display());
+            let _ = writeln!(
+                text,
+                "wrote {}/cohort.{{json,html,csv}}",
+                args.out.display()
+            );
             summary
         }
     };
@@ -180,12 +184,12 @@ pub fn cohort_report(args: &CohortReportArgs) -> Result<Report, Error> {
     let summary = merge_cohort(&args.out)?;
     let counts = &summary["counts"];
     let text = format!(
-        "{} cases: {} ok, {} failed, {} missing; wrote {}\n",
+        "{} cases: {} ok, {} failed, {} missing; wrote {}/cohort.{{json,html,csv}}\n",
         counts["cases"],
         counts["ok"],
         counts["failed"],
         counts["missing"],
-        args.out.join("cohort.json").display()
+        args.out.display()
     );
     Ok(Report {
         text,

@@ -1,6 +1,7 @@
 //! The cohort's results merged from its case folders: `DIR/cohort.json` (every case's outcome,
-//! error and time) and the cohort report. `batch` writes it at the end of an unsharded run;
-//! `cohort-report DIR` writes it after the shards of a job array have all finished.
+//! error and time), the cohort report `DIR/cohort.html` and every metric in `DIR/cohort.csv`.
+//! `batch` writes them at the end of an unsharded run; `cohort-report DIR` writes them after
+//! the shards of a job array have all finished.
 
 use std::path::Path;
 
@@ -9,6 +10,7 @@ use serde_json::{Value, json};
 use super::batch::{Outcome, case_dir, read_status};
 use crate::Error;
 use crate::io_util::write_atomic;
+use crate::report::{CohortEntry, cohort_report};
 
 /// The list of the cohort's case ids that `batch` leaves in its output folder, so that the
 /// merge knows which cases are missing.
@@ -41,15 +43,35 @@ fn read_case_list(out: &Path) -> Result<Vec<String>, Error> {
         .unwrap_or_default())
 }
 
-/// Merges the case folders of the batch output `out` into `out/cohort.json` and returns it.
+fn read_metrics(path: &Path) -> Option<Value> {
+    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
+}
+
+/// Merges the case folders of the batch output `out` into `out/cohort.json` (returned),
+/// `out/cohort.html` and `out/cohort.csv`.
 /// `"passed"` is false when a case failed or has not run.
 pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
     let ids = read_case_list(out)?;
     let mut cases = Vec::new();
+    let mut entries = Vec::new();
     let (mut ok, mut failed, mut missing) = (0usize, 0usize, 0usize);
     for id in &ids {
         let dir = case_dir(out, id);
-        let entry = match read_status(out, id) {
+        let status = read_status(out, id);
+        let metrics_path = dir.join("metrics.json");
+        entries.push(CohortEntry {
+            case: id.clone(),
+            metrics: status
+                .as_ref()
+                .filter(|s| s.outcome != Outcome::Failed)
+                .and_then(|_| read_metrics(&metrics_path)),
+            report_link: format!("cases/{id}/report.html"),
+            error: match &status {
+                Some(s) => s.error.clone(),
+                None => Some("not run: no shard has reached this case".into()),
+            },
+        });
+        let entry = match status {
             Some(s) => {
                 match s.outcome {
                     Outcome::Failed => failed += 1,
@@ -62,7 +84,7 @@ pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
                     "error": s.error,
                     "seconds": s.seconds,
                     "report": dir.join("report.html").is_file().then(|| relative("report.html")),
-                    "metrics": dir.join("metrics.json").is_file().then(|| relative("metrics.json")),
+                    "metrics": metrics_path.is_file().then(|| relative("metrics.json")),
                 })
             }
             None => {
@@ -79,6 +101,13 @@ pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
         "passed": failed == 0 && missing == 0,
         "cases": cases,
     });
+    let report_path = out.join("cohort.html");
+    let report = cohort_report(&entries).map_err(|source| Error::Report {
+        path: report_path.clone(),
+        source,
+    })?;
+    write_atomic(&report_path, report.html.as_bytes())?;
+    write_atomic(&out.join("cohort.csv"), report.csv.as_bytes())?;
     let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
     write_atomic(&out.join("cohort.json"), text.as_bytes())?;
     Ok(summary)

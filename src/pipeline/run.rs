@@ -390,9 +390,9 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         total_seconds: started.elapsed().as_secs_f64(),
     };
     let report_path = out.join("report.html");
-    let html = case_report_html(&report).map_err(|e| Error::Io {
+    let html = case_report_html(&report).map_err(|source| Error::Report {
         path: report_path.clone(),
-        source: std::io::Error::other(e),
+        source,
     })?;
     write_atomic(&report_path, html.as_bytes())?;
     let mut timing_map = serde_json::Map::new();
