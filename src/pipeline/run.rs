@@ -1,7 +1,8 @@
 //! `run`: one case through every stage — ingest, landmarks, rigid, deform, score, export —
 //! each timed, each leaving its artefact under `OUT/stages/` so that `--from STAGE` resumes
 //! from what the earlier stages wrote. Outputs (`OUT/registered/`, `metrics.json`,
-//! `timings.json`) are written atomically, file by file, only after the stages succeeded.
+//! `timings.json`) are written atomically, file by file, only after the stages succeeded;
+//! the patient package `OUT/package/` is written last, as a whole (`export::package`).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,9 @@ use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{Landmarks, Side};
 use crate::image::{self, LoadedImage, Sampler};
+use crate::export::package::PACKAGE_DIR;
+use crate::export::{PackageInput, write_package};
+use crate::image::dicom::patient::read_patient_identity;
 use crate::io_util::write_atomic;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
@@ -41,6 +45,8 @@ pub struct RunOptions {
     pub atlas: Option<PathBuf>,
     /// The side of the ear, overriding the landmark file and the DICOM.
     pub side: Option<Side>,
+    /// Carry the DICOM patient fields into the package's manifest (never otherwise).
+    pub keep_phi: bool,
 }
 
 /// What a finished run reports.
@@ -359,11 +365,66 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     }
     timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
     write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
+    // keep last: a package is present only for a case that finished
+    let package = CasePackage {
+        loaded: &loaded,
+        atlas: &atlas,
+        nodes: &nodes,
+        fit: &fit,
+        deform: &deform_json,
+    };
+    write_case_package(case, opts, config, &package)?;
     Ok(RunSummary {
         metrics,
         timings,
         out: out.clone(),
     })
+}
+
+/// What the package of a case is made of, besides the case and the options.
+struct CasePackage<'a> {
+    loaded: &'a LoadedImage,
+    atlas: &'a Atlas,
+    nodes: &'a [Point3<f64>],
+    fit: &'a RigidFit,
+    deform: &'a Value,
+}
+
+/// Writes `OUT/package/` (deterministic, atomic) and the run-time facts of writing it beside
+/// it in `OUT/package.log.json`.
+fn write_case_package(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    p: &CasePackage,
+) -> Result<(), Error> {
+    let t = Instant::now();
+    let patient = match opts.keep_phi {
+        true => read_patient_identity(&case.image)?,
+        false => None,
+    };
+    let input = PackageInput {
+        atlas: p.atlas,
+        nodes: p.nodes,
+        fit: p.fit,
+        deform: p.deform,
+        config,
+        series_uid_sha256: p.loaded.info.series_uid_sha256.clone(),
+        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        patient,
+    };
+    let manifest = write_package(&opts.out.join(PACKAGE_DIR), &input)?;
+    let written = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let log = json!({
+        "package": PACKAGE_DIR,
+        "files": manifest.files.len() + 1,
+        "seconds": t.elapsed().as_secs_f64(),
+        "written_unix_s": written,
+        "keep_phi": opts.keep_phi,
+    });
+    write_json_file(&opts.out.join("package.log.json"), &log)
 }
 
 /// Per structure: the rigid-only and the registered surface distances, and the MASD
