@@ -171,7 +171,8 @@ mod tests {
             .collect();
         let same = Config::from_toml_str(&bare, Path::new("bare.toml")).unwrap();
         assert_eq!(same.sha256(), c.sha256());
-        let changed = DEFAULT_TOML.replace("slice_gap_tolerance = 0.2", "slice_gap_tolerance = 0.3");
+        let changed =
+            DEFAULT_TOML.replace("slice_gap_tolerance = 0.2", "slice_gap_tolerance = 0.3");
         let other = Config::from_toml_str(&changed, Path::new("p.toml")).unwrap();
         assert_ne!(other.sha256(), c.sha256());
     }

@@ -21,8 +21,14 @@ pub const COMPONENTS: [(&str, Option<&str>); 16] = [
         "TriangleSetTopologyContainer",
         Some("Sofa.Component.Topology.Container.Dynamic"),
     ),
-    ("EulerImplicitSolver", Some("Sofa.Component.ODESolver.Backward")),
-    ("SparseLDLSolver", Some("Sofa.Component.LinearSolver.Direct")),
+    (
+        "EulerImplicitSolver",
+        Some("Sofa.Component.ODESolver.Backward"),
+    ),
+    (
+        "SparseLDLSolver",
+        Some("Sofa.Component.LinearSolver.Direct"),
+    ),
     ("DiagonalMass", Some("Sofa.Component.Mass")),
     (
         "TetrahedronFEMForceField",
@@ -37,7 +43,10 @@ pub const COMPONENTS: [(&str, Option<&str>); 16] = [
         Some("Sofa.Component.SolidMechanics.Spring"),
     ),
     // named FixedProjectiveConstraint from v24.06; the old name loads until v25.06 (§2.1)
-    ("FixedConstraint", Some("Sofa.Component.Constraint.Projective")),
+    (
+        "FixedConstraint",
+        Some("Sofa.Component.Constraint.Projective"),
+    ),
     (
         "FixedProjectiveConstraint",
         Some("Sofa.Component.Constraint.Projective"),

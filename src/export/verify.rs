@@ -185,7 +185,11 @@ fn check_files(m: &Manifest, actual: &BTreeMap<String, String>, faults: &mut Fau
     }
     for name in REQUIRED_FILES {
         if !m.files.contains_key(name) {
-            faults.add("manifest", name, "a package file the manifest does not list");
+            faults.add(
+                "manifest",
+                name,
+                "a package file the manifest does not list",
+            );
         }
     }
     checked
@@ -242,11 +246,7 @@ fn check_counts(mesh: &VolumeMesh, want: MeshCounts, file: &str, faults: &mut Fa
         triangles: mesh.triangles.len(),
     };
     if got != want {
-        faults.add(
-            "mesh",
-            file,
-            format!("{got:?}, the manifest says {want:?}"),
-        );
+        faults.add("mesh", file, format!("{got:?}, the manifest says {want:?}"));
     }
 }
 

@@ -37,7 +37,11 @@ impl<'a, 'input> Scene<'a, 'input> {
             Some([node]) => Some(*node),
             found => {
                 let n = found.map_or(0, <[_]>::len);
-                faults.add("scene", SCENE, format!("{n} {tag} components, expected one"));
+                faults.add(
+                    "scene",
+                    SCENE,
+                    format!("{n} {tag} components, expected one"),
+                );
                 None
             }
         }
@@ -190,7 +194,11 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
     {
         check_len(node, "vertexMass", &m, n, "points", faults);
         if m.iter().any(|&x| x < 0.0) {
-            faults.add("scene", SCENE, "DiagonalMass.vertexMass has a negative mass");
+            faults.add(
+                "scene",
+                SCENE,
+                "DiagonalMass.vertexMass has a negative mass",
+            );
         }
         if let Some((_, rho, h)) = &materials {
             let tets = (0..n_tets).map(|t| {
@@ -266,7 +274,12 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
             check_indices(*node, "indices", &i, n, faults);
         }
     }
-    for node in scene.by_tag.get("RestShapeSpringsForceField").into_iter().flatten() {
+    for node in scene
+        .by_tag
+        .get("RestShapeSpringsForceField")
+        .into_iter()
+        .flatten()
+    {
         if let (Some(p), Some(k)) = (
             numbers(*node, "points", faults),
             numbers(*node, "stiffness", faults),
@@ -284,7 +297,14 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
         .flatten()
     {
         if let Some(c) = numbers(*node, "dampingCoefficient", faults) {
-            check_len(*node, "dampingCoefficient", &c, 3 * n, "point coordinates", faults);
+            check_len(
+                *node,
+                "dampingCoefficient",
+                &c,
+                3 * n,
+                "point coordinates",
+                faults,
+            );
         }
     }
 }
