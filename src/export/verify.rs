@@ -229,7 +229,10 @@ fn check_fields(m: &Manifest, faults: &mut Faults) {
             );
         }
     }
-    if m.atlas_to_patient_matrix4.len() != 16 || !(m.atlas_to_patient.scale > 0.0) {
+    if m.atlas_to_patient_matrix4.len() != 16
+        || !m.atlas_to_patient.scale.is_finite()
+        || m.atlas_to_patient.scale <= 0.0
+    {
         faults.add(
             "manifest",
             MANIFEST,
