@@ -5,7 +5,8 @@
 //! only components the research note documents (mechanics-metrics §2) with every vector as
 //! long as the mesh it loads and every value equal to the atlas's material; meshio reads the
 //! Gmsh file with the right cells and physical tags; no patient-identifying field appears in
-//! any output without `--keep-phi`, and it does with it.
+//! any output without `--keep-phi`, and it does with it; a package replaced by a later run
+//! (resumed `--from deform`) is whole and equal to a fresh one.
 
 mod common;
 
@@ -442,4 +443,15 @@ fn no_patient_field_in_any_output_without_keep_phi() {
     assert_eq!(verify(&kept.join("package")).0, 0);
     let found = leaks(base_run(), &needles);
     assert!(found.is_empty(), "patient fields in outputs: {found:?}");
+    // run again into the same folder from the deform stage, without the flag: the package is
+    // replaced whole, equals the fresh run's byte for byte, and no temporary sibling is left
+    run_case(&kept, &["--from", "deform"]);
+    assert!(tree(&kept.join("package")) == tree(&base_run().join("package")));
+    let names: Vec<String> = std::fs::read_dir(&kept)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
+    let found = leaks(&kept.join("package"), &needles);
+    assert!(found.is_empty(), "patient fields after a run without the flag: {found:?}");
 }
