@@ -453,5 +453,8 @@ fn no_patient_field_in_any_output_without_keep_phi() {
         .collect();
     assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
     let found = leaks(&kept.join("package"), &needles);
-    assert!(found.is_empty(), "patient fields after a run without the flag: {found:?}");
+    assert!(
+        found.is_empty(),
+        "patient fields after a run without the flag: {found:?}"
+    );
 }

@@ -61,20 +61,37 @@ struct ElementMaterials {
     tri_poisson: Vec<f64>,
 }
 
+/// The atlas's material per cell (tetrahedra, then triangles), as `material_arrays` gives it
+/// (SI; NaN for a cell without a known material): E [Pa], density [kg/m³], ν, thickness [mm].
+pub(super) struct CellMaterials {
+    pub modulus: Vec<f64>,
+    pub density: Vec<f64>,
+    pub poisson: Vec<f64>,
+    pub thickness: Vec<f64>,
+}
+
+impl CellMaterials {
+    pub(super) fn of(atlas: &Atlas) -> CellMaterials {
+        let mut arrays = material_arrays(atlas);
+        let mut take = |name: &str| {
+            arrays
+                .iter_mut()
+                .find(|a| a.name == name)
+                .map(|a| std::mem::take(&mut a.values))
+                .unwrap_or_default()
+        };
+        CellMaterials {
+            modulus: take("youngs_modulus_pa"),
+            density: take("density_kg_m3"),
+            poisson: take("poisson_ratio"),
+            thickness: take("thickness_mm"),
+        }
+    }
+}
+
 fn element_materials(atlas: &Atlas) -> Result<ElementMaterials, Error> {
-    let arrays = material_arrays(atlas);
-    let column = |name: &str| {
-        arrays
-            .iter()
-            .find(|a| a.name == name)
-            .map(|a| a.values.as_slice())
-            .unwrap_or(&[])
-    };
-    let (e, nu, h) = (
-        column("youngs_modulus_pa"),
-        column("poisson_ratio"),
-        column("thickness_mm"),
-    );
+    let cells = CellMaterials::of(atlas);
+    let (e, nu, h) = (&cells.modulus, &cells.poisson, &cells.thickness);
     let n_tets = atlas.mesh.tets.tets.len();
     let n_cells = n_tets + atlas.mesh.triangles.len();
     if [e, nu, h].iter().any(|c| c.len() != n_cells)

@@ -9,11 +9,10 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use roxmltree::{Document, Node};
 
-use super::scene::SCENE;
+use super::scene::{CellMaterials, SCENE};
 use super::sofa::{STRUCTURAL, plugin_of};
 use super::verify::Faults;
 use crate::atlas::Atlas;
-use crate::atlas::export::material_arrays;
 use crate::atlas::materials::KG_PER_M3_TO_G_PER_MM3;
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::tet::signed_volume;
@@ -172,23 +171,11 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
         mesh.tets.tets.len(),
         mesh.triangles.len(),
     );
-    // per cell (tetrahedra, then triangles): E [Pa], density [g/mm^3], thickness [mm]
-    let materials = atlas.map(|a| {
-        let arrays = material_arrays(a);
-        let col = |name: &str| {
-            arrays
-                .iter()
-                .find(|c| c.name == name)
-                .map(|c| c.values.clone())
-                .unwrap_or_default()
-        };
-        (
-            col("youngs_modulus_pa"),
-            col("density_kg_m3"),
-            col("thickness_mm"),
-        )
-    });
-    let materials = materials.filter(|(e, _, _)| e.len() == n_tets + n_tris);
+    // per cell (tetrahedra, then triangles): E [Pa], density [kg/m^3], thickness [mm]
+    let materials = atlas
+        .map(CellMaterials::of)
+        .filter(|c| c.modulus.len() == n_tets + n_tris)
+        .map(|c| (c.modulus, c.density, c.thickness));
     if let Some(node) = scene.one("DiagonalMass", faults)
         && let Some(m) = numbers(node, "vertexMass", faults)
     {
