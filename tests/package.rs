@@ -171,6 +171,48 @@ fn verify_accepts_a_fresh_package_and_names_each_fault() {
     let (_, report) = verify(&work.path().join("inverted"));
     let text = report["faults"].to_string();
     assert!(text.contains("tetrahedron 0"), "{text}");
+    // scene vectors that no longer match the mesh or the atlas (hashes updated)
+    let edit_scene = |d: &Path, from: &str, to: &str| {
+        let path = d.join("scene.scn");
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replacen(from, to, 1);
+        std::fs::write(&path, &text).unwrap();
+        let mpath = d.join("manifest.json");
+        let mut m: Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+        m["files"]["scene.scn"] = sha256_hex(text.as_bytes()).into();
+        std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    };
+    for (name, from, to, needle) in [
+        (
+            "modulus",
+            "youngModulus=\"14100000000.0 ",
+            "youngModulus=\"1410000000.0 ",
+            "youngModulus[0]",
+        ),
+        ("short", "vertexMass=\"", "vertexMass=\"1 ", "3383 values"),
+        (
+            "unknown",
+            "<DefaultAnimationLoop/>",
+            "<FreeMotionAnimationLoop/>",
+            "FreeMotionAnimationLoop",
+        ),
+    ] {
+        let dir = work.path().join(name);
+        copy_tree(&package, &dir);
+        edit_scene(&dir, from, to);
+        let (code, report) = verify(&dir);
+        assert_eq!(code, 1, "{name}: {report}");
+        let f = faults(&report);
+        let scene_only = f
+            .iter()
+            .all(|(c, file)| c == "scene" && file == "scene.scn");
+        assert!(!f.is_empty() && scene_only, "{name}: {f:?}");
+        assert!(
+            report["faults"].to_string().contains(needle),
+            "{name}: {report}"
+        );
+    }
     // no package at all: bad usage
     let (code, _) = verify(&work.path().join("absent"));
     assert_eq!(code, 2);
