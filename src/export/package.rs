@@ -84,6 +84,26 @@ pub fn write_package(dir: &Path, input: &PackageInput) -> Result<Manifest, Error
     result
 }
 
+/// Writes `out/package/` and the run-time facts of writing it (seconds, Unix time, file
+/// count, whether the patient fields were kept) beside it in `out/package.log.json`.
+pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+    let t = std::time::Instant::now();
+    let manifest = write_package(&out.join(PACKAGE_DIR), input)?;
+    let written = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let log = serde_json::json!({
+        "package": PACKAGE_DIR,
+        "files": manifest.files.len() + 1,
+        "seconds": t.elapsed().as_secs_f64(),
+        "written_unix_s": written,
+        "patient_fields_kept": input.patient.is_some(),
+    });
+    let text = serde_json::to_string_pretty(&log).unwrap_or_default() + "\n";
+    write_atomic(&out.join("package.log.json"), text.as_bytes())?;
+    Ok(manifest)
+}
+
 /// Renames `tmp` to `dir`; an existing `dir` is moved aside first and removed after.
 fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
     let had_old = dir.exists();

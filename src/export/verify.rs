@@ -112,7 +112,7 @@ impl Faults {
 pub fn verify_package(dir: &Path) -> Result<VerifyReport, Error> {
     if !dir.is_dir() {
         return Err(Error::Usage(format!(
-            "{}: no such package folder (expected a folder with {MANIFEST})",
+            "{}: not a package folder (expected a folder with {MANIFEST})",
             dir.display()
         )));
     }

@@ -18,8 +18,7 @@ use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{Landmarks, Side};
-use crate::export::package::PACKAGE_DIR;
-use crate::export::{PackageInput, write_package};
+use crate::export::package::{PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, LoadedImage, Sampler};
 use crate::io_util::write_atomic;
@@ -366,65 +365,26 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
     write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
     // keep last: a package is present only for a case that finished
-    let package = CasePackage {
-        loaded: &loaded,
+    let patient = match opts.keep_phi {
+        true => read_patient_identity(&case.image)?,
+        false => None,
+    };
+    let package = PackageInput {
         atlas: &atlas,
         nodes: &nodes,
         fit: &fit,
         deform: &deform_json,
+        config,
+        series_uid_sha256: loaded.info.series_uid_sha256.clone(),
+        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        patient,
     };
-    write_case_package(case, opts, config, &package)?;
+    write_package_logged(out, &package)?;
     Ok(RunSummary {
         metrics,
         timings,
         out: out.clone(),
     })
-}
-
-/// What the package of a case is made of, besides the case and the options.
-struct CasePackage<'a> {
-    loaded: &'a LoadedImage,
-    atlas: &'a Atlas,
-    nodes: &'a [Point3<f64>],
-    fit: &'a RigidFit,
-    deform: &'a Value,
-}
-
-/// Writes `OUT/package/` (deterministic, atomic) and the run-time facts of writing it beside
-/// it in `OUT/package.log.json`.
-fn write_case_package(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
-    p: &CasePackage,
-) -> Result<(), Error> {
-    let t = Instant::now();
-    let patient = match opts.keep_phi {
-        true => read_patient_identity(&case.image)?,
-        false => None,
-    };
-    let input = PackageInput {
-        atlas: p.atlas,
-        nodes: p.nodes,
-        fit: p.fit,
-        deform: p.deform,
-        config,
-        series_uid_sha256: p.loaded.info.series_uid_sha256.clone(),
-        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
-        patient,
-    };
-    let manifest = write_package(&opts.out.join(PACKAGE_DIR), &input)?;
-    let written = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let log = json!({
-        "package": PACKAGE_DIR,
-        "files": manifest.files.len() + 1,
-        "seconds": t.elapsed().as_secs_f64(),
-        "written_unix_s": written,
-        "keep_phi": opts.keep_phi,
-    });
-    write_json_file(&opts.out.join("package.log.json"), &log)
 }
 
 /// Per structure: the rigid-only and the registered surface distances, and the MASD
