@@ -191,3 +191,58 @@ fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
     write_atomic(&dir.join(MANIFEST), manifest.to_json()?.as_bytes())?;
     Ok(manifest)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::default_atlas;
+    use crate::export::verify_package;
+    use crate::register::rigid::SimilarityTransform;
+
+    #[test]
+    fn a_refused_package_leaves_the_previous_one_whole_and_no_temporary() {
+        let atlas = default_atlas().unwrap();
+        let config = Config::default_config().unwrap();
+        let fit = RigidFit {
+            transform: SimilarityTransform::identity(),
+            residuals_mm: vec![0.0; 3],
+            rms_mm: 0.0,
+        };
+        let deform = serde_json::json!({ "status": { "status": "converged" }, "iterations": 0 });
+        let input = PackageInput {
+            atlas: &atlas,
+            nodes: atlas.nodes(),
+            fit: &fit,
+            deform: &deform,
+            config: &config,
+            series_uid_sha256: None,
+            inputs_sha256: "0".repeat(64),
+            patient: None,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let package = dir.path().join(PACKAGE_DIR);
+        let manifest = write_package(&package, &input).unwrap();
+        assert_eq!(manifest.mesh.tetrahedra, atlas.mesh.tets.tets.len());
+        let report = verify_package(&package).unwrap();
+        assert!(report.passed(), "{}", report.text());
+        let before = file_digests(&package).unwrap();
+        // the nodes mirrored without re-orienting the elements: every tetrahedron inverted
+        let inverted: Vec<Point3<f64>> = atlas
+            .nodes()
+            .iter()
+            .map(|p| Point3::new(-p.x, p.y, p.z))
+            .collect();
+        let bad = PackageInput {
+            nodes: &inverted,
+            ..input.clone()
+        };
+        let err = write_package(&package, &bad).unwrap_err().to_string();
+        assert!(err.contains("positive volume"), "{err}");
+        assert_eq!(file_digests(&package).unwrap(), before);
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, [PACKAGE_DIR]);
+    }
+}
