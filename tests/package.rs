@@ -192,6 +192,12 @@ fn verify_accepts_a_fresh_package_and_names_each_fault() {
         ),
         ("short", "vertexMass=\"", "vertexMass=\"1 ", "3383 values"),
         (
+            "subelements",
+            " createSubelements=\"false\"",
+            "",
+            "createSubelements",
+        ),
+        (
             "unknown",
             "<DefaultAnimationLoop/>",
             "<FreeMotionAnimationLoop/>",
@@ -353,6 +359,12 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
     assert_eq!(
         one("MeshGmshLoader").attribute("filename"),
         Some("mesh.msh")
+    );
+    // MeshGmshLoader defaults createSubelements to true for Gmsh files (sofa MeshGmshLoader.cpp):
+    // the tetrahedra's faces would join the membrane triangles
+    assert_eq!(
+        one("MeshGmshLoader").attribute("createSubelements"),
+        Some("false")
     );
     assert_eq!(
         one("TetrahedronFEMForceField").attribute("method"),

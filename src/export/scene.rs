@@ -8,7 +8,9 @@
 //! (valid in every version, §2.1); TriangularFEMForceField has no thickness, so membranes get
 //! E·h (§2.3); DiagonalMass takes one `vertexMass` per point, computed here as
 //! Σ ρV/4 + Σ ρhA/3 (§2.4); `FixedConstraint` is the v23 name of FixedProjectiveConstraint
-//! (§2.1); the child node "Eardrum" has a triangle topology and no MechanicalObject, so its
+//! (§2.1); MeshGmshLoader gets `createSubelements="false"` (it defaults to true for Gmsh
+//! files and would add every tetrahedron face to the loader's triangles: MeshGmshLoader.cpp,
+//! MeshLoader.cpp in sofa-framework/sofa); the child node "Eardrum" has a triangle topology and no MechanicalObject, so its
 //! force fields act on the parent's DOFs (§2.8). Units mm-g-s: force µN, modulus and pressure
 //! Pa, mass g, stiffness µN/mm, damping g/s.
 
@@ -168,8 +170,9 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
     let _ = writeln!(
         s,
         "    <!-- tetrahedra (ossicles, joints, ligaments, tendons) and eardrum triangles on one \
-         node set; physical tag = region label (atlas.json) -->\n    \
-         <MeshGmshLoader name=\"loader\" filename=\"{SCENE_MESH}\"/>"
+         node set; physical tag = region label (atlas.json). createSubelements defaults to true \
+         for Gmsh files and would add every tetrahedron face to the triangles -->\n    \
+         <MeshGmshLoader name=\"loader\" filename=\"{SCENE_MESH}\" createSubelements=\"false\"/>"
     );
     s.push_str("    <Node name=\"MiddleEar\">\n");
     let _ = writeln!(

@@ -1,6 +1,6 @@
 //! The scene part of `verify`: `scene.scn` parsed as XML; every element a known SOFA
 //! component (`sofa::COMPONENTS`) whose plugin the scene requires; the loader's file in the
-//! package; and every vector against the mesh it loads — one mass per point (summing to the
+//! package, read without sub-elements (so its triangles are the membrane's); and every vector against the mesh it loads — one mass per point (summing to the
 //! mass of the elements, Σ ρV + Σ ρhA, computed here from the geometry), one Young's modulus
 //! per tetrahedron and E·h per triangle equal to the atlas's material of the element, fixed
 //! and spring indices in range, one damping Vec3 per point.
@@ -148,6 +148,14 @@ pub(super) fn check_scene(
         );
     }
     if let Some(loader) = scene.one("MeshGmshLoader", faults) {
+        if loader.attribute("createSubelements") != Some("false") {
+            faults.add(
+                "scene",
+                SCENE,
+                "MeshGmshLoader without createSubelements=\"false\": for Gmsh files it adds every \
+                 tetrahedron face to the triangles the membrane force field acts on",
+            );
+        }
         let file = loader.attribute("filename").unwrap_or("");
         if !files.contains_key(file) {
             faults.add(
