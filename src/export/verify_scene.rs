@@ -1,9 +1,10 @@
 //! The scene part of `verify`: `scene.scn` parsed as XML; every element a known SOFA
 //! component (`sofa::COMPONENTS`) whose plugin the scene requires; the loader's file in the
-//! package, read without sub-elements (so its triangles are the membrane's); and every vector against the mesh it loads — one mass per point (summing to the
-//! mass of the elements, Σ ρV + Σ ρhA, computed here from the geometry), one Young's modulus
-//! per tetrahedron and E·h per triangle equal to the atlas's material of the element, fixed
-//! and spring indices in range, one damping Vec3 per point.
+//! package, read without sub-elements (so its triangles are the membrane's); and every vector
+//! against the mesh it loads — one positive mass per point (summing to the mass of the
+//! elements, Σ ρV + Σ ρhA, computed here from the geometry), one Young's modulus per
+//! tetrahedron and E·h per triangle equal to the atlas's material of the element, fixed and
+//! spring indices in range, one damping Vec3 per point.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -188,11 +189,15 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
         && let Some(m) = numbers(node, "vertexMass", faults)
     {
         check_len(node, "vertexMass", &m, n, "points", faults);
-        if m.iter().any(|&x| x < 0.0) {
+        if let Some(v) = m.iter().position(|&x| x <= 0.0) {
             faults.add(
                 "scene",
                 SCENE,
-                "DiagonalMass.vertexMass has a negative mass",
+                format!(
+                    "DiagonalMass.vertexMass[{v}] = {}: every point needs a positive mass (some \
+                     SOFA versions refuse a zero)",
+                    m[v]
+                ),
             );
         }
         if let Some((_, rho, h)) = &materials {
