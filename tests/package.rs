@@ -356,24 +356,16 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
             .map(|x| x.parse().unwrap())
             .collect()
     };
-    assert_eq!(
-        one("MeshGmshLoader").attribute("filename"),
-        Some("mesh.msh")
-    );
     // MeshGmshLoader defaults createSubelements to true for Gmsh files (sofa MeshGmshLoader.cpp):
     // the tetrahedra's faces would join the membrane triangles
-    assert_eq!(
-        one("MeshGmshLoader").attribute("createSubelements"),
-        Some("false")
-    );
-    assert_eq!(
-        one("TetrahedronFEMForceField").attribute("method"),
-        Some("large")
-    );
-    assert_eq!(
-        one("TriangularFEMForceField").attribute("method"),
-        Some("large")
-    );
+    for (tag, attr, value) in [
+        ("MeshGmshLoader", "filename", "mesh.msh"),
+        ("MeshGmshLoader", "createSubelements", "false"),
+        ("TetrahedronFEMForceField", "method", "large"),
+        ("TriangularFEMForceField", "method", "large"),
+    ] {
+        assert_eq!(one(tag).attribute(attr), Some(value), "{tag}.{attr}");
+    }
     // one mass per point, all positive
     let masses = numbers("DiagonalMass", "vertexMass");
     assert_eq!(masses.len(), n);
