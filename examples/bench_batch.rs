@@ -34,6 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             jobs,
             resume: false,
             atlas: None,
+            keep_phi: false,
         };
         let t = std::time::Instant::now();
         let statuses = run_batch(&cohort, &opts, &config)?;

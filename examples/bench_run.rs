@@ -28,6 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             landmarks: None,
             atlas: None,
             side: None,
+            keep_phi: false,
         };
         let mut per_stage: Vec<Vec<f64>> = vec![Vec::new(); Stage::ALL.len() + 1];
         let mut dims = String::new();

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite on a fresh machine (with Rust installed): installs what the tests need
-# (Debian and Python packages, public test corpora), checks formatting and lints, runs every test.
+# (Debian and Python packages, public test corpora), checks formatting and lints, runs every test,
+# then the Slurm test (scripts/slurm-test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib.sh
@@ -8,9 +9,13 @@ ensure_build_deps
 ensure_apt python3 python3
 ensure_apt dcmdjpeg dcmtk
 ensure_apt chromium chromium
+ensure_apt slurmctld slurm-wlm
+ensure_apt munged munge
 python3 -m pip --version >/dev/null 2>&1 || ensure_apt pip python3-pip
 python3 -m pip install --quiet --disable-pip-version-check -r scripts/requirements-test.txt
 bash scripts/fetch-testdata.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked
+# the Slurm job array on a one-node cluster started here (needs root for the daemons)
+as_root bash scripts/slurm-test.sh "$PWD/target/debug/otoatlas"

@@ -92,6 +92,19 @@ impl Config {
         Ok(config)
     }
 
+    /// The canonical serialisation: compact JSON, fields in declaration order, floats in
+    /// their shortest round-trip form. Equal configurations give equal text, whatever the
+    /// TOML's layout, comments or key order.
+    pub fn canonical_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+
+    /// SHA-256 (hex) of [`Config::canonical_json`]: the configuration's identity in package
+    /// manifests and batch resume.
+    pub fn sha256(&self) -> String {
+        crate::io_util::sha256_hex(self.canonical_json().as_bytes())
+    }
+
     fn check(&self, path: &Path) -> Result<(), ConfigError> {
         let positive = |field: &'static str, v: f64| {
             if v.is_finite() && v > 0.0 {
@@ -145,6 +158,23 @@ mod tests {
     fn embedded_default_parses() {
         let c = Config::default_config().unwrap();
         assert!(c.ingest.max_file_mib >= 1024.0);
+    }
+
+    #[test]
+    fn sha256_follows_values_not_layout() {
+        let c = Config::default_config().unwrap();
+        // comments and blank lines do not matter; a changed value does
+        let bare: String = DEFAULT_TOML
+            .lines()
+            .filter(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty())
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let same = Config::from_toml_str(&bare, Path::new("bare.toml")).unwrap();
+        assert_eq!(same.sha256(), c.sha256());
+        let changed =
+            DEFAULT_TOML.replace("slice_gap_tolerance = 0.2", "slice_gap_tolerance = 0.3");
+        let other = Config::from_toml_str(&changed, Path::new("p.toml")).unwrap();
+        assert_ne!(other.sha256(), c.sha256());
     }
 
     #[test]

@@ -9,6 +9,7 @@ pub mod cli;
 pub mod config;
 pub mod ear;
 pub mod error;
+pub mod export;
 pub mod fem;
 pub mod image;
 pub mod io_util;

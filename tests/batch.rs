@@ -209,7 +209,6 @@ fn package_files(out: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 }
 
 #[test]
-#[ignore = "needs the patient package (OUT/package), not written by run yet"]
 fn a_killed_batch_resumes_to_the_same_packages() {
     let dir = tempfile::tempdir().unwrap();
     let clean = dir.path().join("clean");
@@ -225,7 +224,8 @@ fn a_killed_batch_resumes_to_the_same_packages() {
         expected.keys()
     );
 
-    // kill -9 as soon as the first package is in place, while the second case runs
+    // kill -9 as soon as the first case has finished (its package and then its status are in
+    // place), while the second case runs
     let killed = dir.path().join("killed");
     let mut child = otoatlas()
         .args(["batch", "--jobs", "1", "--out"])
@@ -233,7 +233,7 @@ fn a_killed_batch_resumes_to_the_same_packages() {
         .arg(samples())
         .spawn()
         .unwrap();
-    let first = killed.join("cases/case-001/package");
+    let first = killed.join("cases/case-001/status.json");
     let deadline = Instant::now() + Duration::from_secs(300);
     while !first.exists() && Instant::now() < deadline {
         if child.try_wait().unwrap().is_some() {
@@ -278,4 +278,74 @@ fn a_killed_batch_resumes_to_the_same_packages() {
     )
     .unwrap();
     assert_eq!(status["outcome"], "ok");
+}
+
+/// The "N cases: R ran, S resumed, F failed" line of a batch.
+fn ran_resumed_failed(o: &Output) -> (usize, usize, usize) {
+    let text = String::from_utf8_lossy(&o.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.contains(" ran, "))
+        .unwrap_or_else(|| panic!("no summary line in {text}"));
+    let numbers: Vec<usize> = line
+        .split(|c: char| !c.is_ascii_digit())
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    (numbers[1], numbers[2], numbers[3])
+}
+
+#[test]
+fn resume_reruns_exactly_the_cases_that_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let cohort = sample_cohort(dir.path());
+    let out = dir.path().join("out");
+    let batch = |extra: &[&str]| {
+        let o = run(otoatlas()
+            .args(["batch", "--jobs", "2", "--resume", "--out"])
+            .arg(&out)
+            .arg(&cohort)
+            .args(extra));
+        assert!(o.status.success(), "{o:?}");
+        o
+    };
+    assert_eq!(ran_resumed_failed(&batch(&[])), (3, 0, 0));
+    assert_eq!(ran_resumed_failed(&batch(&[])), (0, 3, 0));
+
+    // case-001: its status lost (killed between package and status) -> resumed, status restored
+    std::fs::remove_file(out.join("cases/case-001/status.json")).unwrap();
+    // case-002: a package file damaged -> verify fails -> run again
+    let msh = out.join("cases/case-002/package/mesh.msh");
+    let mut bytes = std::fs::read(&msh).unwrap();
+    bytes.extend_from_slice(b"\n");
+    std::fs::write(&msh, bytes).unwrap();
+    // case-003: an input changed (its umbo moved by 0.01 mm) -> run again
+    for name in ["landmarks.fcsv", "landmarks.mrk.json"] {
+        std::fs::remove_file(cohort.join("case-003").join(name)).unwrap();
+    }
+    let path = cohort.join("case-003/landmarks.json");
+    let mut landmarks: Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let x = landmarks["umbo"][0].as_f64().unwrap();
+    landmarks["umbo"][0] = (x + 0.01).into();
+    std::fs::write(&path, landmarks.to_string()).unwrap();
+    assert_eq!(ran_resumed_failed(&batch(&[])), (2, 1, 0));
+    let status: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("cases/case-001/status.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(status["outcome"], "ok");
+
+    // another configuration -> every case again
+    let config = dir.path().join("pipeline.toml");
+    let default =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline.toml"))
+            .unwrap();
+    let changed = default.replacen("search_range_mm = 0.8", "search_range_mm = 0.75", 1);
+    assert_ne!(changed, default);
+    std::fs::write(&config, changed).unwrap();
+    let config_arg = config.to_string_lossy().into_owned();
+    assert_eq!(
+        ran_resumed_failed(&batch(&["--config", &config_arg])),
+        (3, 0, 0)
+    );
 }

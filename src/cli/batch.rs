@@ -56,6 +56,10 @@ pub struct BatchArgs {
     /// Array tasks of the emitted script; default: one per case.
     #[arg(long, value_name = "N", requires = "emit_sbatch")]
     pub shards: Option<usize>,
+    /// Keep the DICOM patient fields (name, ID, birth date, institution, accession) in the
+    /// packages' manifests; without it no output holds them.
+    #[arg(long)]
+    pub keep_phi: bool,
     /// Print machine-readable JSON (cohort.json) on stdout.
     #[arg(long)]
     pub json: bool,
@@ -106,6 +110,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
             jobs,
             config: config_abs.as_deref(),
             atlas: atlas_abs.as_deref(),
+            keep_phi: args.keep_phi,
         });
         crate::io_util::write_atomic(script_path, script.as_bytes())?;
         return Ok(Report {
@@ -134,6 +139,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
         jobs,
         resume: args.resume,
         atlas: args.atlas.clone(),
+        keep_phi: args.keep_phi,
     };
     let statuses = run_batch(&selected, &opts, &config)?;
     let failed: Vec<_> = statuses

@@ -9,6 +9,7 @@ mod phantom;
 mod run;
 mod simulate;
 mod validate;
+mod verify;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -44,6 +45,7 @@ pub enum Command {
     Phantom(phantom::PhantomArgs),
     Validate(validate::ValidateArgs),
     Simulate(simulate::SimulateArgs),
+    Verify(verify::VerifyArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script. A JSON object with
@@ -74,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Phantom(a) => a.json,
         Command::Validate(a) => a.json,
         Command::Simulate(a) => a.json,
+        Command::Verify(a) => a.json,
     };
     let result = match &cli.command {
         Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
@@ -85,6 +88,7 @@ pub fn main() -> ExitCode {
         Command::Phantom(a) => phantom::run(a),
         Command::Validate(a) => validate::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Verify(a) => verify::run(a),
     };
     match result {
         Ok(report) => {

@@ -15,9 +15,12 @@ use crate::pipeline::{Case, RunOptions, Stage, run_case};
 /// segmentation), export.
 #[derive(Debug, Args)]
 #[command(
-    after_help = "Outputs under OUT: registered/surfaces/{malleus,incus,stapes,eardrum}.ply,
+    after_help = "Outputs under OUT: package/ (the ready-to-simulate patient package: SOFA
+scene.scn, mesh.msh, mesh.vtu, atlas.json, surfaces, landmarks, manifest.json; written last,
+check it with `otoatlas verify OUT/package`), package.log.json, registered/surfaces/*.ply,
 registered/volume.vtu, registered/landmarks.{json,fcsv}, metrics.json, timings.json, and
-stages/ (one artefact per stage, for --from).
+stages/ (one artefact per stage, for --from). No DICOM patient field is written unless
+--keep-phi is given.
 
 Examples:
   otoatlas run sample_cases/case-000 --out out/case-000
@@ -42,6 +45,10 @@ pub struct RunArgs {
     /// Start at this stage, reusing the artefacts of the earlier ones in OUT/stages/.
     #[arg(long, value_enum, default_value = "ingest")]
     pub from: Stage,
+    /// Copy the DICOM patient fields (name, ID, birth date, institution, accession) into the
+    /// package manifest; without it no patient-identifying field is written anywhere.
+    #[arg(long)]
+    pub keep_phi: bool,
     /// Print machine-readable JSON (the metrics) on stdout.
     #[arg(long)]
     pub json: bool,
@@ -56,6 +63,7 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
         landmarks: args.landmarks.clone(),
         atlas: args.atlas.clone(),
         side: args.side,
+        keep_phi: args.keep_phi,
     };
     let summary = run_case(&case, &opts, &config)?;
     let m = &summary.metrics;

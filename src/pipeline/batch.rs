@@ -3,8 +3,8 @@
 //! A failing case (an error or a panic) does not stop the others: its error is recorded in
 //! its `status.json` and in the cohort report. Cases run on a pool of `jobs` threads and the
 //! parallel loops inside a case (probing, assembly, distances) run on the same pool, so the
-//! machine is never oversubscribed. `--resume` skips the cases whose complete package is
-//! already there, made from the same inputs and configuration.
+//! machine is never oversubscribed. `--resume` skips the cases whose package is already there,
+//! verifies, and was made from the same inputs, configuration and atlas (by SHA-256).
 
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -15,6 +15,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{Case, RunOptions, Stage, run_case};
 use crate::config::Config;
+use crate::export::package::PACKAGE_DIR;
+use crate::export::{atlas_sha256, verify_package};
 use crate::io_util::write_atomic;
 use crate::{Error, progress};
 
@@ -27,6 +29,8 @@ pub struct BatchOptions {
     pub resume: bool,
     /// An atlas folder instead of the embedded default.
     pub atlas: Option<PathBuf>,
+    /// Keep the DICOM patient fields in the packages (`run --keep-phi`).
+    pub keep_phi: bool,
 }
 
 /// How one case of the cohort ended, as `DIR/cases/ID/status.json` records it.
@@ -96,7 +100,23 @@ fn run_one(
     display: &progress::Cohort,
 ) -> CaseStatus {
     let out = case_dir(&opts.out, &case.id);
-    if opts.resume && is_complete(case, &out, config) {
+    if opts.resume && is_complete(case, &out, opts, config) {
+        // a package that verifies is the case's success, whatever an interrupted run left
+        let previous = read_status(&opts.out, &case.id);
+        if previous
+            .as_ref()
+            .is_none_or(|s| s.outcome == Outcome::Failed)
+        {
+            let recovered = CaseStatus {
+                id: case.id.clone(),
+                outcome: Outcome::Ok,
+                error: None,
+                seconds: 0.0,
+            };
+            if let Err(e) = write_status(&opts.out, &recovered) {
+                progress::log(format!("{}: cannot record its status: {e}", case.id));
+            }
+        }
         return CaseStatus {
             id: case.id.clone(),
             outcome: Outcome::Resumed,
@@ -112,6 +132,7 @@ fn run_one(
         landmarks: None,
         atlas: opts.atlas.clone(),
         side: None,
+        keep_phi: opts.keep_phi,
     };
     // a panic in one case is that case's failure, never the cohort's
     let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_case(case, &run_opts, config)));
@@ -154,10 +175,28 @@ pub fn read_status(out: &Path, id: &str) -> Option<CaseStatus> {
     serde_json::from_str(&text).ok()
 }
 
-/// Whether the case's outputs in `out` are complete and were made from these inputs and this
-/// configuration: the last run succeeded and its package verifies.
-fn is_complete(case: &Case, out: &Path, config: &Config) -> bool {
-    let _ = (case, config);
-    read_status(out.parent().and_then(Path::parent).unwrap_or(out), &case.id)
-        .is_some_and(|s| s.outcome != Outcome::Failed)
+/// Whether the case's outputs in `out` are complete and current: its package verifies (every
+/// file hashed, meshes and scene consistent) and its manifest names these inputs, this
+/// configuration and this atlas (by SHA-256), and holds no patient identity unless asked to.
+/// A package is written last and atomically, so one that verifies means the run finished.
+fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) -> bool {
+    let Ok(report) = verify_package(&out.join(PACKAGE_DIR)) else {
+        return false;
+    };
+    let Some(manifest) = report.manifest.as_ref().filter(|_| report.passed()) else {
+        return false;
+    };
+    let same_inputs = case
+        .inputs_sha256(None)
+        .is_ok_and(|digest| digest == manifest.inputs_sha256);
+    let same_atlas = || {
+        crate::atlas::load_atlas(opts.atlas.as_deref(), Some(manifest.side))
+            .ok()
+            .and_then(|atlas| atlas_sha256(&atlas).ok())
+            .is_some_and(|digest| digest == manifest.atlas.sha256)
+    };
+    same_inputs
+        && manifest.config_sha256 == config.sha256()
+        && (opts.keep_phi || manifest.patient.is_none())
+        && same_atlas()
 }

@@ -2,7 +2,8 @@
 //! each timed, each leaving its artefact under `OUT/stages/` so that `--from STAGE` resumes
 //! from what the earlier stages wrote. Outputs (`OUT/registered/`, `metrics.json`,
 //! `report.html`, `timings.json`) are written atomically, file by file, only after the stages
-//! succeeded.
+//! succeeded; the patient package `OUT/package/` is written last, as a whole
+//! (`export::package`).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,8 @@ use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{Landmarks, Side};
+use crate::export::package::{PackageInput, write_package_logged};
+use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, LoadedImage, Sampler};
 use crate::io_util::write_atomic;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
@@ -43,6 +46,8 @@ pub struct RunOptions {
     pub atlas: Option<PathBuf>,
     /// The side of the ear, overriding the landmark file and the DICOM.
     pub side: Option<Side>,
+    /// Carry the DICOM patient fields into the package's manifest (never otherwise).
+    pub keep_phi: bool,
 }
 
 /// What a finished run reports.
@@ -401,6 +406,22 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     }
     timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
     write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
+    // keep last: a package is present only for a case that finished
+    let patient = match opts.keep_phi {
+        true => read_patient_identity(&case.image)?,
+        false => None,
+    };
+    let package = PackageInput {
+        atlas: &atlas,
+        nodes: &nodes,
+        fit: &fit,
+        deform: &deform_json,
+        config,
+        series_uid_sha256: loaded.info.series_uid_sha256.clone(),
+        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        patient,
+    };
+    write_package_logged(out, &package)?;
     Ok(RunSummary {
         metrics,
         timings,

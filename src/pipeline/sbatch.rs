@@ -18,6 +18,8 @@ pub struct SbatchSpec<'a> {
     pub jobs: usize,
     pub config: Option<&'a Path>,
     pub atlas: Option<&'a Path>,
+    /// Pass `--keep-phi` to every task.
+    pub keep_phi: bool,
 }
 
 /// Quotes `text` for a POSIX shell.
@@ -43,6 +45,9 @@ pub fn sbatch_script(spec: &SbatchSpec) -> String {
     }
     if let Some(a) = spec.atlas {
         command.push_str(&format!(" --atlas {}", quoted(a)));
+    }
+    if spec.keep_phi {
+        command.push_str(" --keep-phi");
     }
     let merge = format!("{} cohort-report {}", quoted(spec.exe), quoted(spec.out));
     let logs = spec.out.join("slurm");

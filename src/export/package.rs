@@ -1,0 +1,248 @@
+//! Writing the patient package: the registered atlas as a simulator loads it, assembled in a
+//! temporary sibling folder and renamed into place, so a package is complete or absent (an
+//! older package is replaced only once the new one is whole). Same inputs and configuration
+//! give the same bytes: nothing depends on the time, the machine or a path.
+//!
+//! ```text
+//! package/
+//!   manifest.json        what it was made from, units, transform, SHA-256 of every file
+//!   scene.scn            SOFA scene (v23.06+) loading mesh.msh
+//!   mesh.msh             Gmsh MSH 2.2 ASCII: tetrahedra + eardrum triangles, physical tag = region
+//!   mesh.vtu             the same cells with region and per-cell material arrays (SI)
+//!   atlas.json           the atlas's regions, materials, damping, supports, node sets, load
+//!                        surfaces and tied landmarks, unchanged (otoatlas-atlas format, mesh.vtu)
+//!   surfaces/{malleus,incus,stapes,eardrum}.ply
+//!   landmarks.fcsv  landmarks.mrk.json  landmarks.json
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Point3;
+use serde_json::Value;
+
+use super::digest::file_digests;
+use super::manifest::{
+    AtlasRef, FORMAT, MANIFEST, Manifest, MeshCounts, Registration, Units, VERSION, atlas_sha256,
+};
+use super::scene::{SCENE, SCENE_MESH, scene_string};
+use crate::Error;
+use crate::atlas::Atlas;
+use crate::atlas::export::export_atlas;
+use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manifest_string};
+use crate::config::Config;
+use crate::image::dicom::patient::PatientIdentity;
+use crate::io_util::{io_err, write_atomic};
+use crate::mesh::io::gmsh::write_msh;
+use crate::register::landmarks::write_mrk_json;
+use crate::register::rigid::RigidFit;
+
+/// The package folder's name in a run's output folder.
+pub const PACKAGE_DIR: &str = "package";
+
+/// Everything a package is made of.
+#[derive(Debug, Clone)]
+pub struct PackageInput<'a> {
+    /// The atlas as the run used it (mirrored to the case's side), at its rest shape.
+    pub atlas: &'a Atlas,
+    /// The registered node positions (LPS mm).
+    pub nodes: &'a [Point3<f64>],
+    pub fit: &'a RigidFit,
+    /// The deformable stage's summary (`status.status`, `iterations`), as `run` records it.
+    pub deform: &'a Value,
+    pub config: &'a Config,
+    pub series_uid_sha256: Option<String>,
+    pub inputs_sha256: String,
+    /// Only with `--keep-phi`.
+    pub patient: Option<PatientIdentity>,
+}
+
+/// Writes the package `dir` (replacing an older one) and returns its manifest.
+pub fn write_package(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "package".into());
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+    let sibling = |what: &str| parent.join(format!(".{name}.{}.{what}", std::process::id()));
+    let (tmp, old) = (sibling("tmp"), sibling("old"));
+    for stale in [&tmp, &old] {
+        if stale.exists() {
+            std::fs::remove_dir_all(stale).map_err(io_err(stale))?;
+        }
+    }
+    let result = write_parts(&tmp, input).and_then(|manifest| {
+        swap_into_place(&tmp, dir, &old)?;
+        Ok(manifest)
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+/// Writes `out/package/` and the run-time facts of writing it (seconds, Unix time, file
+/// count, whether the patient fields were kept) beside it in `out/package.log.json`.
+pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+    let t = std::time::Instant::now();
+    let manifest = write_package(&out.join(PACKAGE_DIR), input)?;
+    let written = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let log = serde_json::json!({
+        "package": PACKAGE_DIR,
+        "files": manifest.files.len() + 1,
+        "seconds": t.elapsed().as_secs_f64(),
+        "written_unix_s": written,
+        "patient_fields_kept": input.patient.is_some(),
+    });
+    let text = serde_json::to_string_pretty(&log).unwrap_or_default() + "\n";
+    write_atomic(&out.join("package.log.json"), text.as_bytes())?;
+    Ok(manifest)
+}
+
+/// Renames `tmp` to `dir`; an existing `dir` is moved aside first and removed after.
+fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
+    let had_old = dir.exists();
+    if had_old {
+        std::fs::rename(dir, old).map_err(io_err(dir))?;
+    }
+    if let Err(e) = std::fs::rename(tmp, dir) {
+        if had_old {
+            let _ = std::fs::rename(old, dir);
+        }
+        return Err(io_err(dir)(e));
+    }
+    if had_old {
+        std::fs::remove_dir_all(old).map_err(io_err(old))?;
+    }
+    Ok(())
+}
+
+/// The registration summary of the manifest.
+fn registration(fit: &RigidFit, deform: &Value) -> Registration {
+    Registration {
+        landmark_rms_mm: fit.rms_mm,
+        landmark_residuals_mm: fit.residuals_mm.clone(),
+        scale: fit.transform.scale,
+        deform_status: deform["status"]["status"]
+            .as_str()
+            .unwrap_or("unknown")
+            .to_string(),
+        deform_iterations: deform["iterations"].as_u64().unwrap_or(0),
+    }
+}
+
+fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+    let atlas = input.atlas;
+    let mut registered = atlas.clone();
+    registered.mesh.tets.nodes = input.nodes.to_vec();
+    // the package's atlas must read back: positive volumes, landmarks on the mesh
+    crate::atlas::format::validate(&registered, &dir.join(ATLAS_MANIFEST))?;
+
+    // surfaces, the VTU with material arrays, landmarks.{json,fcsv}
+    export_atlas(atlas, input.nodes, dir)?;
+    let vtu: PathBuf = dir.join(ATLAS_MESH);
+    std::fs::rename(dir.join("volume.vtu"), &vtu).map_err(io_err(&vtu))?;
+    let landmarks = atlas.landmark_positions(input.nodes);
+    write_atomic(
+        &dir.join("landmarks.mrk.json"),
+        write_mrk_json(&landmarks).as_bytes(),
+    )?;
+    write_msh(&dir.join(SCENE_MESH), &registered.mesh)?;
+    write_atomic(
+        &dir.join(ATLAS_MANIFEST),
+        manifest_string(&registered)?.as_bytes(),
+    )?;
+    write_atomic(
+        &dir.join(SCENE),
+        scene_string(atlas, input.nodes)?.as_bytes(),
+    )?;
+
+    let transform = input.fit.transform;
+    let manifest = Manifest {
+        format: FORMAT.into(),
+        version: VERSION,
+        otoatlas_version: env!("CARGO_PKG_VERSION").into(),
+        units: Units::ours(),
+        side: atlas.side,
+        atlas: AtlasRef {
+            name: atlas.name.clone(),
+            sha256: atlas_sha256(atlas)?,
+        },
+        series_uid_sha256: input.series_uid_sha256.clone(),
+        inputs_sha256: input.inputs_sha256.clone(),
+        config_sha256: input.config.sha256(),
+        config: input.config.clone(),
+        atlas_to_patient: transform,
+        atlas_to_patient_matrix4: transform.matrix4().transpose().as_slice().to_vec(),
+        registration: registration(input.fit, input.deform),
+        mesh: MeshCounts {
+            nodes: input.nodes.len(),
+            tetrahedra: atlas.mesh.tets.tets.len(),
+            triangles: atlas.mesh.triangles.len(),
+        },
+        patient: input.patient.clone(),
+        files: file_digests(dir)?,
+    };
+    write_atomic(&dir.join(MANIFEST), manifest.to_json()?.as_bytes())?;
+    Ok(manifest)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::default_atlas;
+    use crate::export::verify_package;
+    use crate::register::rigid::SimilarityTransform;
+
+    #[test]
+    fn a_refused_package_leaves_the_previous_one_whole_and_no_temporary() {
+        let atlas = default_atlas().unwrap();
+        let config = Config::default_config().unwrap();
+        let fit = RigidFit {
+            transform: SimilarityTransform::identity(),
+            residuals_mm: vec![0.0; 3],
+            rms_mm: 0.0,
+        };
+        let deform = serde_json::json!({ "status": { "status": "converged" }, "iterations": 0 });
+        let input = PackageInput {
+            atlas: &atlas,
+            nodes: atlas.nodes(),
+            fit: &fit,
+            deform: &deform,
+            config: &config,
+            series_uid_sha256: None,
+            inputs_sha256: "0".repeat(64),
+            patient: None,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let package = dir.path().join(PACKAGE_DIR);
+        let manifest = write_package(&package, &input).unwrap();
+        assert_eq!(manifest.mesh.tetrahedra, atlas.mesh.tets.tets.len());
+        let report = verify_package(&package).unwrap();
+        assert!(report.passed(), "{}", report.text());
+        let before = file_digests(&package).unwrap();
+        // the nodes mirrored without re-orienting the elements: every tetrahedron inverted
+        let inverted: Vec<Point3<f64>> = atlas
+            .nodes()
+            .iter()
+            .map(|p| Point3::new(-p.x, p.y, p.z))
+            .collect();
+        let bad = PackageInput {
+            nodes: &inverted,
+            ..input.clone()
+        };
+        let err = write_package(&package, &bad).unwrap_err().to_string();
+        assert!(err.contains("positive volume"), "{err}");
+        assert_eq!(file_digests(&package).unwrap(), before);
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, [PACKAGE_DIR]);
+    }
+}

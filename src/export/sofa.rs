@@ -1,0 +1,81 @@
+//! The SOFA components a package's scene may use, each with the plugin that provides it, as
+//! checked in sofa-framework/sofa v23.06–v24.12 (research note mechanics-metrics §2.1–2.8).
+//! The scene writer emits only these; `verify` rejects any other element and any component
+//! whose plugin the scene does not require.
+
+/// Elements of the scene file that are not components (no plugin to load).
+pub const STRUCTURAL: [&str; 2] = ["Node", "RequiredPlugin"];
+
+/// (component, plugin): every component the scene may contain. `None`: part of the core
+/// (Sofa.Simulation.Core), needs no `RequiredPlugin`.
+pub const COMPONENTS: [(&str, Option<&str>); 16] = [
+    ("DefaultAnimationLoop", None),
+    ("MeshGmshLoader", Some("Sofa.Component.IO.Mesh")),
+    ("MeshVTKLoader", Some("Sofa.Component.IO.Mesh")),
+    ("MechanicalObject", Some("Sofa.Component.StateContainer")),
+    (
+        "TetrahedronSetTopologyContainer",
+        Some("Sofa.Component.Topology.Container.Dynamic"),
+    ),
+    (
+        "TriangleSetTopologyContainer",
+        Some("Sofa.Component.Topology.Container.Dynamic"),
+    ),
+    (
+        "EulerImplicitSolver",
+        Some("Sofa.Component.ODESolver.Backward"),
+    ),
+    (
+        "SparseLDLSolver",
+        Some("Sofa.Component.LinearSolver.Direct"),
+    ),
+    ("DiagonalMass", Some("Sofa.Component.Mass")),
+    (
+        "TetrahedronFEMForceField",
+        Some("Sofa.Component.SolidMechanics.FEM.Elastic"),
+    ),
+    (
+        "TriangularFEMForceField",
+        Some("Sofa.Component.SolidMechanics.FEM.Elastic"),
+    ),
+    (
+        "RestShapeSpringsForceField",
+        Some("Sofa.Component.SolidMechanics.Spring"),
+    ),
+    // named FixedProjectiveConstraint from v24.06; the old name loads until v25.06 (§2.1)
+    (
+        "FixedConstraint",
+        Some("Sofa.Component.Constraint.Projective"),
+    ),
+    (
+        "FixedProjectiveConstraint",
+        Some("Sofa.Component.Constraint.Projective"),
+    ),
+    (
+        "DiagonalVelocityDampingForceField",
+        Some("Sofa.Component.MechanicalLoad"),
+    ),
+    (
+        "SurfacePressureForceField",
+        Some("Sofa.Component.MechanicalLoad"),
+    ),
+];
+
+/// The plugin of `component`: `Some(None)` for a core component, `None` if unknown.
+pub fn plugin_of(component: &str) -> Option<Option<&'static str>> {
+    COMPONENTS
+        .iter()
+        .find(|(name, _)| *name == component)
+        .map(|(_, plugin)| *plugin)
+}
+
+/// The plugins the components in `used` need, sorted and without repeats.
+pub fn plugins_for<'a>(used: impl IntoIterator<Item = &'a str>) -> Vec<&'static str> {
+    let mut plugins: Vec<&'static str> = used
+        .into_iter()
+        .filter_map(|c| plugin_of(c).flatten())
+        .collect();
+    plugins.sort_unstable();
+    plugins.dedup();
+    plugins
+}

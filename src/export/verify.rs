@@ -1,0 +1,308 @@
+//! `verify`: checks that a package is whole and consistent — every file re-hashed against the
+//! manifest (none missing, none unlisted), the manifest's fields (format, version, units,
+//! configuration hash, mesh counts), mesh.msh and mesh.vtu read back and equal, no inverted
+//! or degenerate tetrahedron, atlas.json valid over mesh.vtu, and the SOFA scene's components
+//! and vectors against the mesh (`verify_scene`). Every fault is collected, not just the first.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use serde_json::{Value, json};
+
+use super::digest::file_digests;
+use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION};
+use super::scene::{SCENE, SCENE_MESH};
+use super::verify_scene::check_scene;
+use crate::Error;
+use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, read_atlas};
+use crate::mesh::io::VolumeMesh;
+use crate::mesh::io::gmsh::read_msh;
+use crate::mesh::io::vtu::read_vtu;
+use crate::mesh::tet::signed_volume;
+
+/// Files every package has (besides the manifest).
+pub const REQUIRED_FILES: [&str; 7] = [
+    SCENE,
+    SCENE_MESH,
+    ATLAS_MESH,
+    ATLAS_MANIFEST,
+    "landmarks.fcsv",
+    "landmarks.mrk.json",
+    "landmarks.json",
+];
+
+/// One thing wrong with a package.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Fault {
+    /// The kind of check: manifest, missing, unlisted, hash, mesh, orientation, atlas, scene.
+    pub check: &'static str,
+    /// The file it is about, relative to the package.
+    pub file: String,
+    pub message: String,
+}
+
+/// What `verify` found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerifyReport {
+    pub package: PathBuf,
+    /// The manifest, when it could be read.
+    pub manifest: Option<Manifest>,
+    /// Files whose hash was compared.
+    pub files_checked: usize,
+    pub faults: Vec<Fault>,
+}
+
+impl VerifyReport {
+    /// No fault found.
+    pub fn passed(&self) -> bool {
+        self.faults.is_empty()
+    }
+
+    pub fn to_json(&self) -> Value {
+        json!({
+            "package": self.package,
+            "passed": self.passed(),
+            "files_checked": self.files_checked,
+            "mesh": self.manifest.as_ref().map(|m| m.mesh),
+            "inputs_sha256": self.manifest.as_ref().map(|m| &m.inputs_sha256),
+            "config_sha256": self.manifest.as_ref().map(|m| &m.config_sha256),
+            "faults": self.faults,
+        })
+    }
+
+    pub fn text(&self) -> String {
+        let mut s = format!("package {}: ", self.package.display());
+        if self.passed() {
+            let m = self.manifest.as_ref().map(|m| m.mesh);
+            s.push_str(&format!(
+                "ok: {} files match their SHA-256; {} nodes, {} tetrahedra (none inverted), {} \
+                 triangles; the scene's vectors match the mesh\n",
+                self.files_checked,
+                m.map_or(0, |m| m.nodes),
+                m.map_or(0, |m| m.tetrahedra),
+                m.map_or(0, |m| m.triangles)
+            ));
+        } else {
+            s.push_str(&format!("{} fault(s)\n", self.faults.len()));
+            for f in &self.faults {
+                s.push_str(&format!("  {:<12} {}: {}\n", f.check, f.file, f.message));
+            }
+        }
+        s
+    }
+}
+
+/// Collects faults.
+#[derive(Default)]
+pub(super) struct Faults(pub(super) Vec<Fault>);
+
+impl Faults {
+    pub(super) fn add(&mut self, check: &'static str, file: &str, message: impl Into<String>) {
+        self.0.push(Fault {
+            check,
+            file: file.to_string(),
+            message: message.into(),
+        });
+    }
+}
+
+/// Verifies the package at `dir`. `Err` only when `dir` is not a readable folder; every
+/// problem inside it is a fault of the report.
+pub fn verify_package(dir: &Path) -> Result<VerifyReport, Error> {
+    if !dir.is_dir() {
+        return Err(Error::Usage(format!(
+            "{}: not a package folder (expected a folder with {MANIFEST})",
+            dir.display()
+        )));
+    }
+    let actual = file_digests(dir)?;
+    let mut faults = Faults::default();
+    let manifest = read_manifest(dir, &mut faults);
+    let mut report = VerifyReport {
+        package: dir.to_path_buf(),
+        manifest: manifest.clone(),
+        files_checked: 0,
+        faults: Vec::new(),
+    };
+    if let Some(m) = &manifest {
+        report.files_checked = check_files(m, &actual, &mut faults);
+        check_fields(m, &mut faults);
+        check_content(dir, m, &mut faults);
+    }
+    report.faults = faults.0;
+    Ok(report)
+}
+
+fn read_manifest(dir: &Path, faults: &mut Faults) -> Option<Manifest> {
+    let text = match std::fs::read_to_string(dir.join(MANIFEST)) {
+        Ok(t) => t,
+        Err(e) => {
+            faults.add("manifest", MANIFEST, format!("cannot be read: {e}"));
+            return None;
+        }
+    };
+    let value: Value = match serde_json::from_str(&text) {
+        Ok(v) => v,
+        Err(e) => {
+            faults.add("manifest", MANIFEST, format!("not JSON: {e}"));
+            return None;
+        }
+    };
+    let (format, version) = (&value["format"], &value["version"]);
+    if format != FORMAT || version != VERSION {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            format!("format {format} version {version}, expected \"{FORMAT}\" version {VERSION}"),
+        );
+        return None;
+    }
+    serde_json::from_value(value)
+        .map_err(|e| faults.add("manifest", MANIFEST, format!("not a package manifest: {e}")))
+        .ok()
+}
+
+/// Re-hashes the files; returns how many listed files were compared.
+fn check_files(m: &Manifest, actual: &BTreeMap<String, String>, faults: &mut Faults) -> usize {
+    let mut checked = 0;
+    for (name, want) in &m.files {
+        match actual.get(name) {
+            None => faults.add("missing", name, "listed in the manifest but absent"),
+            Some(got) if got != want => faults.add(
+                "hash",
+                name,
+                format!("SHA-256 {got} differs from the manifest's {want}: the file changed"),
+            ),
+            Some(_) => {}
+        }
+        checked += 1;
+    }
+    for name in actual.keys() {
+        if name != MANIFEST && !m.files.contains_key(name) {
+            faults.add("unlisted", name, "not listed in the manifest");
+        }
+    }
+    for name in REQUIRED_FILES {
+        if !m.files.contains_key(name) {
+            faults.add(
+                "manifest",
+                name,
+                "a package file the manifest does not list",
+            );
+        }
+    }
+    checked
+}
+
+fn check_fields(m: &Manifest, faults: &mut Faults) {
+    if m.units != Units::ours() {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            format!("units {:?}, expected {:?}", m.units, Units::ours()),
+        );
+    }
+    if m.config.sha256() != m.config_sha256 {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            format!(
+                "config_sha256 {} is not the hash of its config ({})",
+                m.config_sha256,
+                m.config.sha256()
+            ),
+        );
+    }
+    let hex64 = |s: &str| s.len() == 64 && s.bytes().all(|b| b.is_ascii_hexdigit());
+    let digests = [
+        ("inputs_sha256", Some(m.inputs_sha256.as_str())),
+        ("atlas.sha256", Some(m.atlas.sha256.as_str())),
+        ("series_uid_sha256", m.series_uid_sha256.as_deref()),
+    ];
+    for (field, value) in digests {
+        if let Some(v) = value.filter(|v| !hex64(v)) {
+            faults.add(
+                "manifest",
+                MANIFEST,
+                format!("{field} '{v}' is not a SHA-256"),
+            );
+        }
+    }
+    if m.atlas_to_patient_matrix4.len() != 16
+        || !m.atlas_to_patient.scale.is_finite()
+        || m.atlas_to_patient.scale <= 0.0
+    {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            "atlas_to_patient: expected a positive scale and a 4x4 matrix (16 numbers)",
+        );
+    }
+}
+
+/// Counts of a mesh against the manifest.
+fn check_counts(mesh: &VolumeMesh, want: MeshCounts, file: &str, faults: &mut Faults) {
+    let got = MeshCounts {
+        nodes: mesh.tets.nodes.len(),
+        tetrahedra: mesh.tets.tets.len(),
+        triangles: mesh.triangles.len(),
+    };
+    if got != want {
+        faults.add("mesh", file, format!("{got:?}, the manifest says {want:?}"));
+    }
+}
+
+/// Tetrahedra with a non-positive volume.
+fn check_orientation(mesh: &VolumeMesh, file: &str, faults: &mut Faults) {
+    let bad: Vec<(usize, f64)> = (0..mesh.tets.tets.len())
+        .filter_map(|t| {
+            let [a, b, c, d] = mesh.tets.corners(t);
+            let v = signed_volume(&a, &b, &c, &d);
+            (v.is_nan() || v <= 1e-12).then_some((t, v))
+        })
+        .collect();
+    if let Some(&(first, v)) = bad.first() {
+        faults.add(
+            "orientation",
+            file,
+            format!(
+                "{} inverted or degenerate tetrahedra (volume <= 0), first: tetrahedron {first} \
+                 ({v:.3e} mm^3)",
+                bad.len()
+            ),
+        );
+    }
+}
+
+fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) {
+    let msh = read_msh(&dir.join(SCENE_MESH))
+        .map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
+        .ok();
+    let vtu = read_vtu(&dir.join(ATLAS_MESH))
+        .map(|(mesh, _)| mesh)
+        .map_err(|e| faults.add("mesh", ATLAS_MESH, e.to_string()))
+        .ok();
+    for (mesh, file) in [(&msh, SCENE_MESH), (&vtu, ATLAS_MESH)] {
+        if let Some(mesh) = mesh {
+            check_counts(mesh, m.mesh, file, faults);
+            check_orientation(mesh, file, faults);
+        }
+    }
+    if let (Some(a), Some(b)) = (&msh, &vtu)
+        && a != b
+    {
+        faults.add(
+            "mesh",
+            SCENE_MESH,
+            format!("differs from {ATLAS_MESH} (nodes, cells or region labels)"),
+        );
+    }
+    let atlas = read_atlas(dir)
+        .map_err(|e| faults.add("atlas", ATLAS_MANIFEST, e.to_string()))
+        .ok();
+    match std::fs::read_to_string(dir.join(SCENE)) {
+        Err(e) => faults.add("scene", SCENE, format!("cannot be read: {e}")),
+        Ok(text) => check_scene(&text, msh.as_ref(), atlas.as_ref(), &m.files, faults),
+    }
+}

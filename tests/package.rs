@@ -1,0 +1,506 @@
+//! The patient package end to end, running the binary on `sample_cases/case-001` (a phantom
+//! with a fake patient identity in its DICOM): `verify` accepts a fresh package and names the
+//! fault of a changed byte, a deleted file, an unlisted file and an inverted element (exit 1)
+//! and a missing folder (exit 2); two runs give byte-identical packages; the SOFA scene uses
+//! only components the research note documents (mechanics-metrics §2) with every vector as
+//! long as the mesh it loads and every value equal to the atlas's material; meshio reads the
+//! Gmsh file with the right cells and physical tags; no patient-identifying field appears in
+//! any output without `--keep-phi`, and it does with it; a package replaced by a later run
+//! (resumed `--from deform`) is whole and equal to a fresh one.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use common::python::run_python;
+use serde_json::Value;
+
+/// Runs case-001 into `out` (with extra flags) and returns the package folder.
+fn run_case(out: &Path, extra: &[&str]) -> PathBuf {
+    let case = common::root().join("sample_cases/case-001");
+    let mut args = vec![
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(["--quiet"]);
+    args.extend(extra);
+    let o = common::otoatlas(&args);
+    assert!(
+        o.status.success(),
+        "run failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out.join("package")
+}
+
+/// One run without --keep-phi, shared by the tests that only read it.
+fn base_run() -> &'static Path {
+    static RUN: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    let (_, out) = RUN.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        run_case(&out, &[]);
+        (dir, out)
+    });
+    out
+}
+
+/// Every file under `dir`, relative path → bytes.
+fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
+                out.insert(rel, std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    for (rel, bytes) in tree(from) {
+        let p = to.join(rel);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, bytes).unwrap();
+    }
+}
+
+/// `otoatlas verify DIR --json`: exit code and report.
+fn verify(dir: &Path) -> (i32, Value) {
+    common::otoatlas_json(&["verify", dir.to_str().unwrap()])
+}
+
+/// (check, file) of each fault of a report.
+fn faults(report: &Value) -> Vec<(String, String)> {
+    report["faults"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            (
+                f["check"].as_str().unwrap().to_string(),
+                f["file"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+#[test]
+fn verify_accepts_a_fresh_package_and_names_each_fault() {
+    let package = base_run().join("package");
+    let (code, report) = verify(&package);
+    assert_eq!(code, 0, "{report}");
+    assert_eq!(report["passed"], true);
+    assert_eq!(report["files_checked"], 11);
+
+    let work = tempfile::tempdir().unwrap();
+    let variant = |name: &str, change: &dyn Fn(&Path)| {
+        let dir = work.path().join(name);
+        copy_tree(&package, &dir);
+        change(&dir);
+        let (code, report) = verify(&dir);
+        assert_eq!(code, 1, "{name}: {report}");
+        assert_eq!(report["passed"], false, "{name}");
+        faults(&report)
+    };
+    // one changed byte
+    let f = variant("byte", &|d| {
+        let p = d.join("surfaces/incus.ply");
+        let mut b = std::fs::read(&p).unwrap();
+        let last = b.len() - 1;
+        b[last] ^= 1;
+        std::fs::write(p, b).unwrap();
+    });
+    assert_eq!(f, [("hash".into(), "surfaces/incus.ply".into())]);
+    // a deleted file, an unlisted file
+    let f = variant("deleted", &|d| {
+        std::fs::remove_file(d.join("landmarks.mrk.json")).unwrap()
+    });
+    assert_eq!(f, [("missing".into(), "landmarks.mrk.json".into())]);
+    let f = variant("extra", &|d| {
+        std::fs::write(d.join("notes.txt"), "x").unwrap()
+    });
+    assert_eq!(f, [("unlisted".into(), "notes.txt".into())]);
+    // an inverted tetrahedron in mesh.msh, with its hash updated so only the geometry is wrong
+    let f = variant("inverted", &|d| {
+        let path = d.join("mesh.msh");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let start = text.find("$Elements\n").unwrap();
+        let line_start = start + text[start..].find('\n').unwrap() + 1;
+        let line_start = line_start + text[line_start..].find('\n').unwrap() + 1;
+        let line_end = line_start + text[line_start..].find('\n').unwrap();
+        let mut w: Vec<&str> = text[line_start..line_end].split(' ').collect();
+        assert_eq!(w[1], "4", "the first element is a tetrahedron");
+        w.swap(5, 6);
+        let text = format!(
+            "{}{}{}",
+            &text[..line_start],
+            w.join(" "),
+            &text[line_end..]
+        );
+        std::fs::write(&path, &text).unwrap();
+        let mpath = d.join("manifest.json");
+        let mut m: Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+        m["files"]["mesh.msh"] = sha256_hex(text.as_bytes()).into();
+        std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    });
+    assert!(
+        f.contains(&("orientation".into(), "mesh.msh".into())),
+        "{f:?}"
+    );
+    assert!(f.iter().all(|(c, _)| c != "hash"), "{f:?}");
+    // the report names the element
+    let (_, report) = verify(&work.path().join("inverted"));
+    let text = report["faults"].to_string();
+    assert!(text.contains("tetrahedron 0"), "{text}");
+    // scene vectors that no longer match the mesh or the atlas (hashes updated)
+    let edit_scene = |d: &Path, from: &str, to: &str| {
+        let path = d.join("scene.scn");
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replacen(from, to, 1);
+        std::fs::write(&path, &text).unwrap();
+        let mpath = d.join("manifest.json");
+        let mut m: Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+        m["files"]["scene.scn"] = sha256_hex(text.as_bytes()).into();
+        std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    };
+    for (name, from, to, needle) in [
+        (
+            "modulus",
+            "youngModulus=\"14100000000.0 ",
+            "youngModulus=\"1410000000.0 ",
+            "youngModulus[0]",
+        ),
+        ("short", "vertexMass=\"", "vertexMass=\"1 ", "3383 values"),
+        (
+            "subelements",
+            " createSubelements=\"false\"",
+            "",
+            "createSubelements",
+        ),
+        (
+            "unknown",
+            "<DefaultAnimationLoop/>",
+            "<FreeMotionAnimationLoop/>",
+            "FreeMotionAnimationLoop",
+        ),
+    ] {
+        let dir = work.path().join(name);
+        copy_tree(&package, &dir);
+        edit_scene(&dir, from, to);
+        let (code, report) = verify(&dir);
+        assert_eq!(code, 1, "{name}: {report}");
+        let f = faults(&report);
+        let scene_only = f
+            .iter()
+            .all(|(c, file)| c == "scene" && file == "scene.scn");
+        assert!(!f.is_empty() && scene_only, "{name}: {f:?}");
+        assert!(
+            report["faults"].to_string().contains(needle),
+            "{name}: {report}"
+        );
+    }
+    // no package at all: bad usage
+    let (code, _) = verify(&work.path().join("absent"));
+    assert_eq!(code, 2);
+}
+
+#[test]
+fn two_runs_give_byte_identical_packages() {
+    let dir = tempfile::tempdir().unwrap();
+    let again = run_case(&dir.path().join("again"), &[]);
+    let (a, b) = (tree(&base_run().join("package")), tree(&again));
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "file lists"
+    );
+    for (name, bytes) in &a {
+        assert!(bytes == &b[name], "{name} differs between two runs");
+    }
+    assert_eq!(a.len(), 12);
+    // no path of this machine inside
+    let out = base_run().to_string_lossy().into_owned();
+    for (name, bytes) in &a {
+        let text = String::from_utf8_lossy(bytes);
+        assert!(!text.contains(&out), "{name} holds the output path");
+    }
+}
+
+/// SOFA components and plugins named in mechanics-metrics §2 (v23.06–v24.12).
+const NOTE_COMPONENTS: [&str; 18] = [
+    "Node",
+    "RequiredPlugin",
+    "DefaultAnimationLoop",
+    "MeshGmshLoader",
+    "MeshVTKLoader",
+    "MechanicalObject",
+    "TetrahedronSetTopologyContainer",
+    "TriangleSetTopologyContainer",
+    "EulerImplicitSolver",
+    "SparseLDLSolver",
+    "DiagonalMass",
+    "TetrahedronFEMForceField",
+    "TriangularFEMForceField",
+    "FixedConstraint",
+    "FixedProjectiveConstraint",
+    "RestShapeSpringsForceField",
+    "DiagonalVelocityDampingForceField",
+    "SurfacePressureForceField",
+];
+const NOTE_PLUGINS: [&str; 10] = [
+    "Sofa.Component.IO.Mesh",
+    "Sofa.Component.StateContainer",
+    "Sofa.Component.Topology.Container.Dynamic",
+    "Sofa.Component.ODESolver.Backward",
+    "Sofa.Component.LinearSolver.Direct",
+    "Sofa.Component.Mass",
+    "Sofa.Component.SolidMechanics.FEM.Elastic",
+    "Sofa.Component.SolidMechanics.Spring",
+    "Sofa.Component.Constraint.Projective",
+    "Sofa.Component.MechanicalLoad",
+];
+
+/// Nodes and elements (type, physical tag) of a Gmsh 2.2 ASCII file, read plainly.
+fn read_gmsh(text: &str) -> (usize, Vec<(u32, u16)>) {
+    let mut lines = text.lines();
+    let mut nodes = 0;
+    let mut elements = Vec::new();
+    while let Some(l) = lines.next() {
+        if l == "$Nodes" {
+            nodes = lines.next().unwrap().parse().unwrap();
+        }
+        if l == "$Elements" {
+            let n: usize = lines.next().unwrap().parse().unwrap();
+            for _ in 0..n {
+                let w: Vec<u32> = lines
+                    .next()
+                    .unwrap()
+                    .split(' ')
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                elements.push((w[1], w[3] as u16));
+            }
+        }
+    }
+    (nodes, elements)
+}
+
+#[test]
+fn sofa_scene_uses_documented_components_and_full_length_vectors() {
+    let package = base_run().join("package");
+    let text = std::fs::read_to_string(package.join("scene.scn")).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let (n, elements) = read_gmsh(&std::fs::read_to_string(package.join("mesh.msh")).unwrap());
+    let tet_labels: Vec<u16> = elements.iter().filter(|e| e.0 == 4).map(|e| e.1).collect();
+    let tri_labels: Vec<u16> = elements.iter().filter(|e| e.0 == 2).map(|e| e.1).collect();
+    assert_eq!(tet_labels.len() + tri_labels.len(), elements.len());
+    // materials per region label, from atlas.json
+    let atlas: Value =
+        serde_json::from_slice(&std::fs::read(package.join("atlas.json")).unwrap()).unwrap();
+    let region = |label: u16| {
+        let r = atlas["regions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["label"] == label)
+            .unwrap();
+        let m = &atlas["materials"][r["material"].as_str().unwrap()];
+        (
+            m["youngs_modulus_pa"].as_f64().unwrap(),
+            m["poisson_ratio"].as_f64().unwrap(),
+            r["thickness_mm"].as_f64(),
+        )
+    };
+    let mut by_tag: BTreeMap<&str, Vec<roxmltree::Node>> = BTreeMap::new();
+    for node in doc.descendants().filter(|n| n.is_element()) {
+        let tag = node.tag_name().name();
+        assert!(
+            NOTE_COMPONENTS.contains(&tag),
+            "undocumented component {tag}"
+        );
+        if tag == "RequiredPlugin" {
+            let name = node.attribute("name").unwrap();
+            assert!(NOTE_PLUGINS.contains(&name), "undocumented plugin {name}");
+        }
+        by_tag.entry(tag).or_default().push(node);
+    }
+    let one = |tag: &str| {
+        assert_eq!(by_tag.get(tag).map_or(0, Vec::len), 1, "{tag}");
+        by_tag[tag][0]
+    };
+    let numbers = |tag: &str, attr: &str| -> Vec<f64> {
+        one(tag)
+            .attribute(attr)
+            .unwrap()
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect()
+    };
+    // MeshGmshLoader defaults createSubelements to true for Gmsh files (sofa MeshGmshLoader.cpp):
+    // the tetrahedra's faces would join the membrane triangles
+    for (tag, attr, value) in [
+        ("MeshGmshLoader", "filename", "mesh.msh"),
+        ("MeshGmshLoader", "createSubelements", "false"),
+        ("TetrahedronFEMForceField", "method", "large"),
+        ("TriangularFEMForceField", "method", "large"),
+    ] {
+        assert_eq!(one(tag).attribute(attr), Some(value), "{tag}.{attr}");
+    }
+    // one mass per point, all positive
+    let masses = numbers("DiagonalMass", "vertexMass");
+    assert_eq!(masses.len(), n);
+    assert!(masses.iter().all(|&m| m > 0.0));
+    // one modulus per tetrahedron, in mesh order, equal to the region's material
+    let e = numbers("TetrahedronFEMForceField", "youngModulus");
+    assert_eq!(e.len(), tet_labels.len());
+    for (k, (&ek, &label)) in e.iter().zip(&tet_labels).enumerate() {
+        assert_eq!(ek, region(label).0, "tetrahedron {k}");
+    }
+    let nu = numbers("TetrahedronFEMForceField", "poissonRatio");
+    assert_eq!(nu, [region(tet_labels[0]).1]);
+    // E x thickness and Poisson's ratio per triangle
+    let eh = numbers("TriangularFEMForceField", "youngModulus");
+    let tri_nu = numbers("TriangularFEMForceField", "poissonRatio");
+    assert_eq!(
+        (eh.len(), tri_nu.len()),
+        (tri_labels.len(), tri_labels.len())
+    );
+    for (k, &label) in tri_labels.iter().enumerate() {
+        let (e, nu, h) = region(label);
+        assert_eq!(eh[k], e * h.unwrap(), "triangle {k}");
+        assert_eq!(tri_nu[k], nu, "triangle {k}");
+    }
+    // boundary indices in range and exactly the atlas's fixed sets
+    let fixed = numbers("FixedConstraint", "indices");
+    assert!(fixed.iter().all(|&i| i >= 0.0 && (i as usize) < n));
+    let mut expected: Vec<f64> = atlas["node_sets"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(k, _)| *k == "tympanic_annulus" || k.starts_with("anchor:"))
+        .flat_map(|(_, v)| v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
+        .collect();
+    expected.sort_by(f64::total_cmp);
+    expected.dedup();
+    assert_eq!(fixed, expected);
+    let points = numbers("RestShapeSpringsForceField", "points");
+    let stiffness = numbers("RestShapeSpringsForceField", "stiffness");
+    assert_eq!(points.len(), stiffness.len());
+    assert!(points.iter().all(|&i| (i as usize) < n));
+    assert_eq!(
+        numbers("DiagonalVelocityDampingForceField", "dampingCoefficient").len(),
+        3 * n
+    );
+}
+
+#[test]
+fn meshio_reads_the_gmsh_mesh_with_its_physical_tags() {
+    let package = base_run().join("package");
+    if let Some(out) = run_python("check_package.py", &[&package], &["meshio", "numpy"]) {
+        assert_eq!(out.trim(), "ok");
+    }
+}
+
+/// The phantom's identity as its DICOM says (read with dicom-object, not otoatlas's reader):
+/// PatientName, PatientID, PatientBirthDate.
+fn dicom_identity() -> [String; 3] {
+    use dicom_dictionary_std::tags;
+    let dir = common::root().join("sample_cases/case-001/dicom");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    let obj = dicom_object::open_file(&files[0]).unwrap();
+    [
+        tags::PATIENT_NAME,
+        tags::PATIENT_ID,
+        tags::PATIENT_BIRTH_DATE,
+    ]
+    .map(|t| {
+        let v = obj.element(t).unwrap().to_str().unwrap();
+        v.trim_matches(|c: char| c == '\0' || c == ' ').to_string()
+    })
+}
+
+/// Every spelling of the identity that could leak: DICOM PN with ^, the usual rewritings, the
+/// ID and the birth date.
+fn phi_needles([name, id, birth]: &[String; 3]) -> Vec<String> {
+    let (family, given) = name.split_once('^').unwrap();
+    vec![
+        name.clone(),
+        format!("{family} {given}"),
+        format!("{given} {family}"),
+        format!("{family}, {given}"),
+        id.clone(),
+        birth.clone(),
+    ]
+}
+
+fn leaks(out: &Path, needles: &[String]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (name, bytes) in tree(out) {
+        let text = String::from_utf8_lossy(&bytes).to_ascii_uppercase();
+        for n in needles {
+            if text.contains(&n.to_ascii_uppercase()) {
+                found.push(format!("{name}: {n}"));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn no_patient_field_in_any_output_without_keep_phi() {
+    let dir = tempfile::tempdir().unwrap();
+    let kept = dir.path().join("kept");
+    run_case(&kept, &["--keep-phi"]);
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(kept.join("package/manifest.json")).unwrap())
+            .unwrap();
+    let identity = dicom_identity();
+    let p = &manifest["patient"];
+    assert_eq!(p["patient_name"], identity[0].as_str());
+    assert_eq!(p["patient_id"], identity[1].as_str());
+    assert_eq!(p["patient_birth_date"], identity[2].as_str());
+    let needles = phi_needles(&identity);
+    assert!(!leaks(&kept, &needles[..1]).is_empty());
+    // the kept package still verifies
+    assert_eq!(verify(&kept.join("package")).0, 0);
+    let found = leaks(base_run(), &needles);
+    assert!(found.is_empty(), "patient fields in outputs: {found:?}");
+    // run again into the same folder from the deform stage, without the flag: the package is
+    // replaced whole, equals the fresh run's byte for byte, and no temporary sibling is left
+    run_case(&kept, &["--from", "deform"]);
+    assert!(tree(&kept.join("package")) == tree(&base_run().join("package")));
+    let names: Vec<String> = std::fs::read_dir(&kept)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
+    let found = leaks(&kept.join("package"), &needles);
+    assert!(
+        found.is_empty(),
+        "patient fields after a run without the flag: {found:?}"
+    );
+}
