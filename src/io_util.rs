@@ -44,6 +44,53 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     fs::rename(&tmp, path).map_err(io_err(path))
 }
 
+/// Writes the folder `dir` as a whole: `write` fills a temporary sibling, which then replaces
+/// `dir` (an older `dir` is moved aside, and restored if the rename fails). On any error the
+/// temporary is removed and an older `dir` is left as it was, so `dir` is complete or absent.
+pub fn write_dir_atomic<T>(
+    dir: &Path,
+    write: impl FnOnce(&Path) -> Result<T, Error>,
+) -> Result<T, Error> {
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    fs::create_dir_all(parent).map_err(io_err(parent))?;
+    let tmp = temp_sibling(dir);
+    let old = tmp.with_extension("old");
+    for stale in [&tmp, &old] {
+        if stale.exists() {
+            fs::remove_dir_all(stale).map_err(io_err(stale))?;
+        }
+    }
+    let result = write(&tmp).and_then(|value| {
+        swap_into_place(&tmp, dir, &old)?;
+        Ok(value)
+    });
+    if result.is_err() {
+        let _ = fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+/// Renames `tmp` to `dir`; an existing `dir` is moved to `old` first and removed after.
+fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
+    let had_old = dir.exists();
+    if had_old {
+        fs::rename(dir, old).map_err(io_err(dir))?;
+    }
+    if let Err(e) = fs::rename(tmp, dir) {
+        if had_old {
+            let _ = fs::rename(old, dir);
+        }
+        return Err(io_err(dir)(e));
+    }
+    if had_old {
+        fs::remove_dir_all(old).map_err(io_err(old))?;
+    }
+    Ok(())
+}
+
 /// Lower-case hexadecimal SHA-256 of `bytes`.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     let digest = Sha256::digest(bytes);
@@ -73,5 +120,35 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1);
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn an_atomic_folder_replaces_the_old_one_whole_or_not_at_all() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("pkg");
+        write_dir_atomic(&dir, |tmp| write_atomic(&tmp.join("a"), b"1")).unwrap();
+        assert_eq!(names(&dir), ["a"]);
+        // a failing writer leaves the old folder untouched and no temporary
+        let failed = write_dir_atomic(&dir, |tmp| {
+            write_atomic(&tmp.join("b"), b"2")?;
+            Err::<(), _>(Error::Usage("stop".into()))
+        });
+        assert!(failed.is_err());
+        assert_eq!(names(&dir), ["a"]);
+        assert_eq!(names(root.path()), ["pkg"]);
+        // a successful one replaces it whole
+        let value = write_dir_atomic(&dir, |tmp| write_atomic(&tmp.join("b"), b"2").map(|_| 7));
+        assert_eq!(value.unwrap(), 7);
+        assert_eq!(names(&dir), ["b"]);
+        assert_eq!(names(root.path()), ["pkg"]);
     }
 }

@@ -31,7 +31,7 @@ use crate::atlas::export::export_atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manifest_string};
 use crate::config::Config;
 use crate::image::dicom::patient::PatientIdentity;
-use crate::io_util::{io_err, write_atomic};
+use crate::io_util::{io_err, write_atomic, write_dir_atomic};
 use crate::mesh::io::gmsh::write_msh;
 use crate::register::landmarks::write_mrk_json;
 use crate::register::rigid::RigidFit;
@@ -58,30 +58,7 @@ pub struct PackageInput<'a> {
 
 /// Writes the package `dir` (replacing an older one) and returns its manifest.
 pub fn write_package(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "package".into());
-    let parent = dir
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    let sibling = |what: &str| parent.join(format!(".{name}.{}.{what}", std::process::id()));
-    let (tmp, old) = (sibling("tmp"), sibling("old"));
-    for stale in [&tmp, &old] {
-        if stale.exists() {
-            std::fs::remove_dir_all(stale).map_err(io_err(stale))?;
-        }
-    }
-    let result = write_parts(&tmp, input).and_then(|manifest| {
-        swap_into_place(&tmp, dir, &old)?;
-        Ok(manifest)
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+    write_dir_atomic(dir, |tmp| write_parts(tmp, input))
 }
 
 /// Writes `out/package/` and the run-time facts of writing it (seconds, Unix time, file
@@ -102,24 +79,6 @@ pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest
     let text = serde_json::to_string_pretty(&log).unwrap_or_default() + "\n";
     write_atomic(&out.join("package.log.json"), text.as_bytes())?;
     Ok(manifest)
-}
-
-/// Renames `tmp` to `dir`; an existing `dir` is moved aside first and removed after.
-fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
-    let had_old = dir.exists();
-    if had_old {
-        std::fs::rename(dir, old).map_err(io_err(dir))?;
-    }
-    if let Err(e) = std::fs::rename(tmp, dir) {
-        if had_old {
-            let _ = std::fs::rename(old, dir);
-        }
-        return Err(io_err(dir)(e));
-    }
-    if had_old {
-        std::fs::remove_dir_all(old).map_err(io_err(old))?;
-    }
-    Ok(())
 }
 
 /// The registration summary of the manifest.

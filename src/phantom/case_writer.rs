@@ -25,7 +25,7 @@ use crate::Error;
 use crate::image::dicom::Rescale;
 use crate::image::dicom::write::{SeriesIdentity, SliceRescale, uid_from, write_series};
 use crate::image::nifti::write_nifti;
-use crate::io_util::{io_err, sha256_hex, write_atomic};
+use crate::io_util::{io_err, sha256_hex, write_atomic, write_dir_atomic};
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::register::landmarks::{write_fcsv, write_json, write_mrk_json};
 
@@ -69,29 +69,8 @@ fn identity(case: &PhantomCase) -> SeriesIdentity {
 
 /// Writes `case` as the folder `dir` (replacing an older one) and returns its path.
 pub fn write_case(dir: &Path, case: &PhantomCase) -> Result<PathBuf, Error> {
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "case".into());
-    let parent = dir
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    let tmp = parent.join(format!(".{name}.{}.tmp", std::process::id()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
-    }
-    let result = write_parts(&tmp, case).and_then(|_| {
-        if dir.exists() {
-            std::fs::remove_dir_all(dir).map_err(io_err(dir))?;
-        }
-        std::fs::rename(&tmp, dir).map_err(io_err(dir))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result.map(|_| dir.to_path_buf())
+    write_dir_atomic(dir, |tmp| write_parts(tmp, case))?;
+    Ok(dir.to_path_buf())
 }
 
 fn write_parts(dir: &Path, case: &PhantomCase) -> Result<(), Error> {
