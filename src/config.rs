@@ -142,6 +142,7 @@ impl Config {
                 d.spring_stiffness_per_area,
             ),
             ("deform.neighbour_tolerance_mm", d.neighbour_tolerance_mm),
+            ("deform.eardrum_offset_weight", d.eardrum_offset_weight),
             ("deform.tolerance_mm", d.tolerance_mm),
         ] {
             positive(field, v)?;

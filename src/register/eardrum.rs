@@ -16,7 +16,7 @@ use crate::image::Sampler;
 
 /// Gauss-Seidel sweeps of the Laplace interpolation and of the offset smoothing.
 const LAPLACE_SWEEPS: usize = 200;
-const SMOOTHING_SWEEPS: usize = 3;
+const SMOOTHING_SWEEPS: usize = 600;
 /// Probe-and-move rounds on the image.
 const ROUNDS: usize = 3;
 
@@ -82,13 +82,6 @@ pub fn fit_eardrum(
         }
     }
     free.iter().for_each(|&v| x[v] = placed[v] + u[v]);
-    let free_neighbours: Vec<Vec<u32>> = free
-        .iter()
-        .map(|&v| {
-            let nb = neighbours[v].iter().copied();
-            nb.filter(|&w| !in_tet[w as usize]).collect()
-        })
-        .collect();
     let mut fit = EardrumFit {
         free_nodes: free.len(),
         found_last_round: 0,
@@ -132,35 +125,60 @@ pub fn fit_eardrum(
                 ((o - median).abs() <= neighbour_tolerance_mm).then_some(o)
             })
             .collect();
-        let mut smooth: Vec<f64> = vec![0.0; n];
-        let mut known = vec![false; n];
-        for (&v, k) in free.iter().zip(&kept) {
-            if let Some(o) = k {
-                smooth[v] = *o;
-                known[v] = true;
-            }
-        }
-        fit.found_last_round = known.iter().filter(|k| **k).count();
-        fit.mean_offset_mm = free
-            .iter()
-            .filter(|&&v| known[v])
-            .map(|&v| smooth[v].abs())
-            .sum::<f64>()
+        let mut target: Vec<Option<f64>> = vec![None; n];
+        free.iter().zip(&kept).for_each(|(&v, k)| target[v] = *k);
+        fit.found_last_round = kept.iter().flatten().count();
+        fit.mean_offset_mm = kept.iter().flatten().map(|o| o.abs()).sum::<f64>()
             / fit.found_last_round.max(1) as f64;
-        // smooth: average each free node with its free neighbours (unknown ones count 0)
-        for _ in 0..SMOOTHING_SWEEPS {
-            let previous = smooth.clone();
-            for (&v, nb) in free.iter().zip(&free_neighbours) {
-                let own = if known[v] { previous[v] } else { 0.0 };
-                smooth[v] = (own + nb.iter().map(|&w| previous[w as usize]).sum::<f64>())
-                    / (1 + nb.len()) as f64;
-            }
-        }
+        let smooth = smooth_offsets(
+            &free,
+            &neighbours,
+            &in_tet,
+            &target,
+            cfg.eardrum_offset_weight,
+        );
         for &v in &free {
             x[v] += normals[v] * smooth[v];
         }
     }
     fit
+}
+
+/// The offsets to apply: the smooth field s minimising
+/// Σ_found weight (s_v − o_v)² + Σ_edges (s_v − s_w)² over the free nodes, with
+/// s = 0 on the nodes the tetrahedra hold (the manubrium attachment). Node-to-node noise of
+/// the probes is damped about 1 + 2·degree/weight times (`eardrum_offset_weight`) while the sheet's broad shape passes:
+/// a membrane with no bending stiffness must stay smooth, or it goes slack (a crumpled
+/// membrane has no stiffness until its wrinkles are pulled out). Gauss-Seidel sweeps.
+fn smooth_offsets(
+    free: &[usize],
+    neighbours: &[Vec<u32>],
+    in_tet: &[bool],
+    target: &[Option<f64>],
+    weight: f64,
+) -> Vec<f64> {
+    let mut s: Vec<f64> = target.iter().map(|o| o.unwrap_or(0.0)).collect();
+    for _ in 0..SMOOTHING_SWEEPS {
+        for &v in free {
+            let (mut sum, mut weight) = match target[v] {
+                Some(o) => (weight * o, weight),
+                None => (0.0, 0.0),
+            };
+            for &w in &neighbours[v] {
+                // the attachment's nodes have moved with the manubrium already: offset 0
+                sum += if in_tet[w as usize] {
+                    0.0
+                } else {
+                    s[w as usize]
+                };
+                weight += 1.0;
+            }
+            if weight > 0.0 {
+                s[v] = sum / weight;
+            }
+        }
+    }
+    s
 }
 
 /// Area-weighted unit normals at the nodes of `triangles`.

@@ -52,6 +52,9 @@ pub struct DeformConfig {
     /// Fit the eardrum to the soft-tissue ridge in the image (off: it only follows the
     /// manubrium).
     pub probe_eardrum: bool,
+    /// Weight of each found eardrum offset against the smoothness of the offsets over each
+    /// membrane edge (lower: smoother) [unitless].
+    pub eardrum_offset_weight: f64,
     /// Spring stiffness per unit of surface area of a node [µN/mm per mm²].
     pub spring_stiffness_per_area: f64,
     /// A triangle's offset may differ from the median of its neighbours' by this much [mm].
