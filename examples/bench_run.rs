@@ -18,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = tempfile::tempdir()?;
     println!(
-        "case       spacing  dims          ingest landmarks rigid deform  score export  total"
+        "case       spacing  dims          ingest landmarks rigid deform  score export validate report  total"
     );
     for k in 1..=3 {
         let case = Case::open(&root.join(format!("sample_cases/case-00{k}")))?;
@@ -30,25 +30,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             side: None,
             keep_phi: false,
         };
-        let mut per_stage: Vec<Vec<f64>> = vec![Vec::new(); Stage::ALL.len() + 1];
+        let names: Vec<&str> = Stage::ALL
+            .iter()
+            .map(|s| s.name())
+            .chain(["validate", "report"])
+            .collect();
+        let mut per_stage: Vec<Vec<f64>> = vec![Vec::new(); names.len() + 1];
         let mut dims = String::new();
         let mut spacing = 0.0;
         for _ in 0..repeats {
             let t = std::time::Instant::now();
             let summary = run_case(&case, &opts, &config)?;
-            per_stage[Stage::ALL.len()].push(t.elapsed().as_secs_f64());
-            for (stage, secs) in summary.timings {
-                per_stage[stage as usize].push(secs);
+            per_stage[names.len()].push(t.elapsed().as_secs_f64());
+            for (step, secs) in summary.timings {
+                if let Some(k) = names.iter().position(|n| *n == step) {
+                    per_stage[k].push(secs);
+                }
             }
             dims = summary.metrics["image"]["dims"].to_string();
             spacing = summary.metrics["image"]["spacing"][0]
                 .as_f64()
                 .unwrap_or(0.0);
         }
-        let m: Vec<f64> = per_stage.into_iter().map(median).collect();
+        // a step that did not run (validation off) reads 0
+        let m: Vec<f64> = per_stage
+            .into_iter()
+            .map(|v| if v.is_empty() { 0.0 } else { median(v) })
+            .collect();
         println!(
-            "{:<10} {:>5.3} mm {:<13} {:>6.3} {:>9.3} {:>5.3} {:>6.3} {:>6.3} {:>6.3} {:>6.3}",
-            case.id, spacing, dims, m[0], m[1], m[2], m[3], m[4], m[5], m[6]
+            "{:<10} {:>5.3} mm {:<13} {:>6.3} {:>9.3} {:>5.3} {:>6.3} {:>6.3} {:>6.3} {:>8.3} {:>6.3} {:>6.3}",
+            case.id, spacing, dims, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]
         );
     }
     Ok(())

@@ -38,6 +38,17 @@ pub struct Config {
     pub landmarks: crate::register::landmarks::CheckConfig,
     pub rigid: RigidConfig,
     pub deform: crate::register::deform::DeformConfig,
+    pub validate: ValidateConfig,
+}
+
+/// Whether `run` and `batch` validate each package's mechanics (`[validate]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidateConfig {
+    /// Validate every package against its atlas (transfer function gates).
+    pub enabled: bool,
+    /// Add the static-pressure (UDSP) curve and its gates.
+    pub static_pressure: bool,
 }
 
 /// Knobs of the rigid (landmark) alignment.

@@ -7,6 +7,7 @@
 //! without bending stiffness, so a registration that leaves it rough makes it slack: before
 //! its offsets were smoothed, case-003's package answered 250 Hz 11 dB above the atlas.
 //! (Higher frequencies also follow the patient's size, which the ±10 % phantoms vary.)
+//! `run` stores the package's validation in its manifest and report, unless switched off.
 
 mod common;
 
@@ -41,6 +42,30 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         assert!(o.status.success(), "{case}: {o:?}");
         let package = read_atlas(&out.join("package")).unwrap();
         let tf = tf(&package);
+        // run validated the package: the manifest holds this transfer function, the report
+        // its verdict and charts
+        let manifest: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("package/manifest.json")).unwrap())
+                .unwrap();
+        let stored = manifest["mechanics"]["transfer_function"]
+            .as_array()
+            .unwrap();
+        assert_eq!(stored.len(), 16, "{case}: 1/3 octaves 250-8000 Hz");
+        for p in &tf.points {
+            let row = stored
+                .iter()
+                .find(|r| (r[0].as_f64().unwrap() - p.frequency_hz).abs() < 1e-6)
+                .unwrap();
+            let m = row[1].as_f64().unwrap();
+            assert!(
+                (m / p.magnitude_um_s_per_pa - 1.0).abs() < 1e-9,
+                "{case}: {row}"
+            );
+        }
+        let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+        assert!(html.contains("Mechanics of the package against the atlas"));
+        assert!(html.contains("Goode et al. 1994 band"));
+        assert!(out.join("mechanics.json").is_file());
         for f in [250.0, 500.0] {
             let (a, b) = (reference.at(f).unwrap(), tf.at(f).unwrap());
             let db = b.db() - a.db();
@@ -60,4 +85,38 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         }
     }
     assert!(faults.is_empty(), "{faults:?}");
+}
+
+#[test]
+fn validation_can_be_switched_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let default = std::fs::read_to_string(common::root().join("pipeline.toml")).unwrap();
+    let off = default.replacen("\nenabled = true", "\nenabled = false", 1);
+    assert_ne!(off, default);
+    let config = dir.path().join("pipeline.toml");
+    std::fs::write(&config, off).unwrap();
+    let out = dir.path().join("out");
+    // a previous run's verdict must not survive a run without validation
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("mechanics.json"), "{}").unwrap();
+    let case = common::root().join("sample_cases/case-001");
+    let o = common::otoatlas(&[
+        "--quiet",
+        "--config",
+        &config.to_string_lossy(),
+        "run",
+        &case.to_string_lossy(),
+        "--out",
+        &out.to_string_lossy(),
+    ]);
+    assert!(o.status.success(), "{o:?}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("package/manifest.json")).unwrap()).unwrap();
+    assert!(manifest.get("mechanics").is_none());
+    assert!(!out.join("mechanics.json").exists());
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Not validated"));
+    let timings: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("timings.json")).unwrap()).unwrap();
+    assert!(timings.get("validate").is_none() && timings.get("report").is_some());
 }

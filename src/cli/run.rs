@@ -98,7 +98,7 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
     }
     let _ = writeln!(text);
     for (stage, secs) in &summary.timings {
-        let _ = write!(text, "{} {:.2} s  ", stage.name(), secs);
+        let _ = write!(text, "{stage} {secs:.2} s  ");
     }
     let _ = writeln!(text, "\nwrote {}", summary.out.display());
     Ok(Report {

@@ -15,6 +15,7 @@ use crate::config::Config;
 use crate::ear::Side;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::sha256_hex;
+use crate::mechanics::Validation;
 use crate::mesh::io::vtu::{VtuEncoding, vtu_string};
 use crate::register::rigid::SimilarityTransform;
 
@@ -83,6 +84,55 @@ pub struct MeshCounts {
     pub triangles: usize,
 }
 
+/// The mechanical verdict of a package against its atlas (docs/mechanics.md), with the
+/// figures it was given on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicsSummary {
+    /// Every gate passed.
+    pub passed: bool,
+    /// Gates checked.
+    pub gates: usize,
+    /// The failed gates, each "name = value unit, expected [low, high]".
+    pub failed: Vec<String>,
+    /// The stapes velocity transfer function: [Hz, µm/s/Pa, degrees] per frequency.
+    pub transfer_function: Vec<[f64; 3]>,
+    /// Umbo displacement under static pressure: [Pa, µm]; empty when not computed.
+    pub static_pressure: Vec<[f64; 2]>,
+}
+
+impl MechanicsSummary {
+    pub fn of(v: &Validation) -> MechanicsSummary {
+        let m = &v.mechanics;
+        MechanicsSummary {
+            passed: v.verdict.passed,
+            gates: v.verdict.gates.len(),
+            failed: v
+                .verdict
+                .failures()
+                .map(|g| {
+                    format!(
+                        "{} = {:.3} {}, expected [{}, {}]",
+                        g.name, g.value, g.unit, g.low, g.high
+                    )
+                })
+                .collect(),
+            transfer_function: m
+                .transfer_function
+                .points
+                .iter()
+                .map(|p| [p.frequency_hz, p.magnitude_um_s_per_pa, p.phase_deg])
+                .collect(),
+            static_pressure: m
+                .udsp
+                .points
+                .iter()
+                .map(|p| [p.pressure_pa, p.umbo_mm * 1e3])
+                .collect(),
+        }
+    }
+}
+
 /// The manifest as stored.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -106,6 +156,9 @@ pub struct Manifest {
     pub atlas_to_patient_matrix4: Vec<f64>,
     pub registration: Registration,
     pub mesh: MeshCounts,
+    /// The package's mechanical validation against its atlas, when `[validate]` ran it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mechanics: Option<MechanicsSummary>,
     /// The DICOM patient fields: only with `run --keep-phi`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patient: Option<PatientIdentity>,

@@ -12,6 +12,6 @@ pub mod sofa;
 pub mod verify;
 mod verify_scene;
 
-pub use manifest::{Manifest, atlas_sha256};
+pub use manifest::{Manifest, MechanicsSummary, atlas_sha256};
 pub use package::{PackageInput, write_package};
 pub use verify::{Fault, VerifyReport, verify_package};

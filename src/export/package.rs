@@ -22,7 +22,8 @@ use serde_json::Value;
 
 use super::digest::file_digests;
 use super::manifest::{
-    AtlasRef, FORMAT, MANIFEST, Manifest, MeshCounts, Registration, Units, VERSION, atlas_sha256,
+    AtlasRef, FORMAT, MANIFEST, Manifest, MechanicsSummary, MeshCounts, Registration, Units,
+    VERSION, atlas_sha256,
 };
 use super::scene::{SCENE, SCENE_MESH, scene_string};
 use crate::Error;
@@ -52,6 +53,8 @@ pub struct PackageInput<'a> {
     pub config: &'a Config,
     pub series_uid_sha256: Option<String>,
     pub inputs_sha256: String,
+    /// The mechanical validation against the atlas, when it ran.
+    pub mechanics: Option<MechanicsSummary>,
     /// Only with `--keep-phi`.
     pub patient: Option<PatientIdentity>,
 }
@@ -144,6 +147,7 @@ fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
             tetrahedra: atlas.mesh.tets.tets.len(),
             triangles: atlas.mesh.triangles.len(),
         },
+        mechanics: input.mechanics.clone(),
         patient: input.patient.clone(),
         files: file_digests(dir)?,
     };
@@ -176,6 +180,7 @@ mod tests {
             config: &config,
             series_uid_sha256: None,
             inputs_sha256: "0".repeat(64),
+            mechanics: None,
             patient: None,
         };
         let dir = tempfile::tempdir().unwrap();

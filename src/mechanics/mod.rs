@@ -20,5 +20,6 @@ pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};
 pub use validate::{
     Mechanics, Validation, ValidationOptions, mechanics, validate_atlas, validate_package,
+    validate_package_against,
 };
 pub use verdict::{Gate, Verdict, literature_verdict, relative_verdict};

@@ -12,7 +12,7 @@ const MODEL: RGBColor = RGBColor(200, 60, 40);
 const ATLAS: RGBColor = RGBColor(60, 90, 180);
 const BAND: RGBColor = RGBColor(150, 150, 150);
 
-/// (file name, SVG) of every chart of `v`.
+/// (file name, SVG) of every chart of `v` (no UDSP chart when the curve was not computed).
 pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, MechanicsError> {
     let tf = &v.mechanics.transfer_function;
     let mag = |t: &super::tfa::TransferFunction| -> Vec<(f64, f64)> {
@@ -88,7 +88,7 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, M
             color: ATLAS,
         });
     }
-    Ok(vec![
+    let mut charts = vec![
         (
             "tf_magnitude.svg",
             line_chart_svg(
@@ -109,7 +109,9 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, M
                 false,
             )?,
         ),
-        (
+    ];
+    if !u.is_empty() {
+        charts.push((
             "udsp.svg",
             line_chart_svg(
                 "Umbo displacement under static pressure (+ = medial)",
@@ -118,6 +120,7 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, M
                 &udsp_series,
                 false,
             )?,
-        ),
-    ])
+        ));
+    }
+    Ok(charts)
 }

@@ -13,10 +13,22 @@ use super::verdict::{Verdict, literature_verdict, relative_verdict};
 use crate::atlas::Atlas;
 
 /// What to compute.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ValidationOptions {
     pub tfa: TfaOptions,
-    pub udsp: UdspOptions,
+    /// The static-pressure curve; `None` skips it (an empty curve, no UDSP gates for a
+    /// package).
+    pub udsp: Option<UdspOptions>,
+}
+
+impl Default for ValidationOptions {
+    /// Both checks with their default sweeps.
+    fn default() -> Self {
+        ValidationOptions {
+            tfa: TfaOptions::default(),
+            udsp: Some(UdspOptions::default()),
+        }
+    }
 }
 
 /// The results of both checks on one geometry.
@@ -40,7 +52,10 @@ pub fn mechanics(
     let transfer_function = transfer_function(&system, &options.tfa)?;
     let tfa_seconds = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
-    let udsp = static_pressure_curve(&system, &options.udsp)?;
+    let udsp = match &options.udsp {
+        Some(udsp) => static_pressure_curve(&system, udsp)?,
+        None => StaticCurve { points: Vec::new() },
+    };
     Ok(Mechanics {
         transfer_function,
         udsp,
@@ -79,6 +94,17 @@ pub fn validate_package(
     options: &ValidationOptions,
 ) -> Result<Validation, MechanicsError> {
     let reference = mechanics(atlas, atlas.nodes(), options)?;
+    validate_package_against(&reference, atlas, registered, options)
+}
+
+/// As [`validate_package`], with the atlas's own mechanics (`reference`, computed with the
+/// same `options`) already known: a cohort computes them once.
+pub fn validate_package_against(
+    reference: &Mechanics,
+    atlas: &Atlas,
+    registered: &[Point3<f64>],
+    options: &ValidationOptions,
+) -> Result<Validation, MechanicsError> {
     let m = mechanics(atlas, registered, options)?;
     let verdict = relative_verdict(
         &m.transfer_function,
@@ -88,7 +114,7 @@ pub fn validate_package(
     );
     Ok(Validation {
         mechanics: m,
-        reference: Some(reference),
+        reference: Some(reference.clone()),
         verdict,
     })
 }

@@ -141,7 +141,8 @@ pub fn literature_verdict(tf: &TransferFunction, udsp: &StaticCurve) -> Verdict 
     Verdict::new("literature", gates)
 }
 
-/// A package against its atlas (`reference`).
+/// A package against its atlas (`reference`). Without a reference static-pressure curve
+/// (not computed), only the transfer-function gates.
 pub fn relative_verdict(
     tf: &TransferFunction,
     udsp: &StaticCurve,
@@ -178,6 +179,10 @@ pub fn relative_verdict(
         RELATIVE_PEAK,
         "",
     ));
+    if reference_udsp.points.is_empty() {
+        // the static-pressure curve was not asked for: no UDSP gates
+        return Verdict::new("relative", gates);
+    }
     for p in GATE_PRESSURES_PA {
         let r = match (udsp.at(p), reference_udsp.at(p)) {
             (Some(u), Some(u0)) => u / u0,

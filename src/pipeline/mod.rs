@@ -5,6 +5,7 @@ pub mod batch;
 pub mod case;
 pub mod cohort;
 pub mod cohort_summary;
+pub mod mechanics;
 pub mod run;
 pub mod sbatch;
 pub mod score;

@@ -19,12 +19,14 @@ use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{Landmarks, Side};
+use crate::export::MechanicsSummary;
 use crate::export::package::{PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, LoadedImage, Sampler};
 use crate::io_util::write_atomic;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
+use crate::pipeline::mechanics::validate_registered;
 use crate::register::atlas_fit::{deform_atlas, fit_landmarks, place};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
@@ -54,7 +56,8 @@ pub struct RunOptions {
 #[derive(Debug, Clone)]
 pub struct RunSummary {
     pub metrics: Value,
-    pub timings: Vec<(Stage, f64)>,
+    /// Seconds per step: the stages that ran, then "validate" (when on) and "report".
+    pub timings: Vec<(&'static str, f64)>,
     pub out: PathBuf,
 }
 
@@ -367,7 +370,36 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         "scores": scores.as_ref().map(|(v, _)| v.clone()),
     });
     write_json_file(&out.join("metrics.json"), &metrics)?;
-    let stage_times: Vec<(&str, f64)> = timings.iter().map(|(s, t)| (s.name(), *t)).collect();
+    let mut stage_times: Vec<(&'static str, f64)> =
+        timings.iter().map(|(s, t)| (s.name(), *t)).collect();
+    let mechanics_path = out.join("mechanics.json");
+    let validation = if config.validate.enabled {
+        progress::case_stage(&case.id, "validate");
+        let t = Instant::now();
+        let v = validate_registered(&atlas, &nodes, &config.validate)?;
+        write_json_file(
+            &mechanics_path,
+            &serde_json::to_value(&v).unwrap_or_default(),
+        )?;
+        progress::log(format!(
+            "{}: mechanics against the atlas: {} ({} of {} gates failed)",
+            case.id,
+            if v.verdict.passed { "pass" } else { "FAIL" },
+            v.verdict.failures().count(),
+            v.verdict.gates.len()
+        ));
+        stage_times.push(("validate", t.elapsed().as_secs_f64()));
+        Some(v)
+    } else {
+        // an earlier run's verdict would not be this package's
+        if mechanics_path.exists() {
+            std::fs::remove_file(&mechanics_path).map_err(|source| Error::Io {
+                path: mechanics_path.clone(),
+                source,
+            })?;
+        }
+        None
+    };
     let report = CaseReportInput {
         case_id: &case.id,
         image: &loaded,
@@ -391,6 +423,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
                 reference: &reference.surfaces,
             },
         },
+        mechanics: validation.as_ref(),
         timings: &stage_times,
         total_seconds: started.elapsed().as_secs_f64(),
     };
@@ -402,10 +435,11 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     })?;
     write_atomic(&report_path, html.as_bytes())?;
     let mut timing_map = serde_json::Map::new();
-    for (s, secs) in &timings {
-        timing_map.insert(s.name().into(), json!(secs));
+    for (name, secs) in &stage_times {
+        timing_map.insert((*name).into(), json!(secs));
     }
     // the package's own time is in package.log.json, written with it
+    stage_times.push(("report", t.elapsed().as_secs_f64()));
     timing_map.insert("report".into(), json!(t.elapsed().as_secs_f64()));
     timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
     write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
@@ -422,12 +456,13 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         config,
         series_uid_sha256: loaded.info.series_uid_sha256.clone(),
         inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        mechanics: validation.as_ref().map(MechanicsSummary::of),
         patient,
     };
     write_package_logged(out, &package)?;
     Ok(RunSummary {
         metrics,
-        timings,
+        timings: stage_times,
         out: out.clone(),
     })
 }

@@ -4,7 +4,8 @@
 //! registration targets (mechanics-metrics.md §0.2), the case summary (image geometry, side,
 //! atlas, landmark residuals, rigid scale, deformable status, timings), the surface distances
 //! per structure (rigid fit and registration, definitions of §0.2), the slice overlays, the
-//! histograms of signed distances and the convergence curve of the deformable stage.
+//! histograms of signed distances, the convergence curve of the deformable stage, and the
+//! package's mechanics against the atlas (verdict, transfer function and static-pressure charts).
 
 use std::collections::BTreeMap;
 
@@ -13,9 +14,11 @@ use plotters::style::RGBColor;
 use serde_json::Value;
 
 mod accuracy;
+mod mechanics;
 mod summary;
 
 use accuracy::{histograms, metrics_table};
+use mechanics::mechanics_section;
 use summary::{summary, verdict};
 
 use super::error::ReportError;
@@ -28,6 +31,7 @@ use super::slices::{
 use crate::atlas::{Atlas, Part};
 use crate::ear::Side;
 use crate::image::{LoadedImage, Sampler};
+use crate::mechanics::Validation;
 use crate::mesh::TriMesh;
 use crate::register::rigid::RigidFit;
 
@@ -66,6 +70,8 @@ pub struct CaseReportInput<'a> {
     /// The deformable stage's record (`metrics.json`'s `deform`).
     pub deform: &'a Value,
     pub accuracy: Accuracy<'a>,
+    /// The package's mechanical validation against the atlas, when it ran.
+    pub mechanics: Option<&'a Validation>,
     /// Seconds per stage run, and the whole run so far.
     pub timings: &'a [(&'a str, f64)],
     pub total_seconds: f64,
@@ -96,6 +102,23 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     let registered = surfaces(input.atlas, input.registered_nodes);
     let mut page = Page::new(&format!("otoatlas case report: {}", input.case_id));
     verdict(&mut page, &deform, scores.as_ref());
+    if let Some(v) = input.mechanics {
+        let failed = v.verdict.failures().count();
+        match failed {
+            0 => page.paragraph(
+                "The package keeps the atlas's mechanics (every gate passes; see the last section).",
+                Some("ok"),
+            ),
+            n => page.paragraph(
+                &format!(
+                    "{n} mechanical gate{} against the atlas fail{} (see the last section).",
+                    if n == 1 { "" } else { "s" },
+                    if n == 1 { "s" } else { "" }
+                ),
+                Some("bad"),
+            ),
+        };
+    }
     summary(&mut page, input, &deform);
     metrics_table(&mut page, input, scores.as_ref());
 
@@ -135,6 +158,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
 
     histograms(&mut page, input, &registered)?;
     convergence(&mut page, &deform)?;
+    mechanics_section(&mut page, input.mechanics)?;
     Ok(page.finish())
 }
 

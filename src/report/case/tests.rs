@@ -118,6 +118,7 @@ fn html(f: &Fixture, accuracy: Accuracy) -> String {
         registered_nodes: &f.registered,
         deform: &f.deform,
         accuracy,
+        mechanics: None,
         timings: &[("ingest", 0.5), ("deform", 1.25)],
         total_seconds: 2.0,
     })
@@ -276,4 +277,94 @@ fn a_deformable_stage_that_stopped_early_is_flagged() {
         "<p class=\"bad\">The deformable registration did not converge (inversion_guard: \
          element 7 inverted): check the overlays.</p>"
     ));
+}
+
+/// A package validation: the atlas's transfer function, and the package's with |H_V| halved
+/// at 4 kHz (-6 dB: one gate fails); no static-pressure curve.
+fn validation() -> crate::mechanics::Validation {
+    use crate::mechanics::{
+        Drive, Mechanics, StaticCurve, TfPoint, TransferFunction, relative_verdict,
+    };
+    let tf = |scale_4k: f64| TransferFunction {
+        drive: Drive::Eardrum,
+        drive_pa: 0.632,
+        points: [
+            (250.0, 13.0, 68.0),
+            (1000.0, 34.0, -16.0),
+            (4000.0, 13.0, -107.0),
+        ]
+        .iter()
+        .map(|&(f, m, p)| TfPoint {
+            frequency_hz: f,
+            magnitude_um_s_per_pa: if f == 4000.0 { m * scale_4k } else { m },
+            phase_deg: p,
+            umbo_um_s_per_pa: 0.0,
+        })
+        .collect(),
+    };
+    let mechanics = |t: TransferFunction| Mechanics {
+        transfer_function: t,
+        udsp: StaticCurve { points: vec![] },
+        tfa_seconds: 0.0,
+        udsp_seconds: 0.0,
+    };
+    let (package, atlas) = (mechanics(tf(0.5)), mechanics(tf(1.0)));
+    let verdict = relative_verdict(
+        &package.transfer_function,
+        &package.udsp,
+        &atlas.transfer_function,
+        &atlas.udsp,
+    );
+    crate::mechanics::Validation {
+        mechanics: package,
+        reference: Some(atlas),
+        verdict,
+    }
+}
+
+#[test]
+fn a_validated_package_shows_its_gates_and_charts() {
+    let f = fixture();
+    let sampler = Sampler::new(&f.image.volume).unwrap();
+    let v = validation();
+    let page = |mechanics| {
+        case_report_html(&CaseReportInput {
+            case_id: "case-<7>",
+            image: &f.image,
+            sampler: &sampler,
+            side: Side::Right,
+            side_source: "landmark file",
+            atlas: &f.atlas,
+            fit: &f.fit,
+            rigid_nodes: &f.rigid,
+            registered_nodes: &f.registered,
+            deform: &f.deform,
+            accuracy: Accuracy::NoSegmentation,
+            mechanics,
+            timings: &[],
+            total_seconds: 1.0,
+        })
+        .unwrap()
+    };
+    let html = page(Some(&v));
+    is_self_contained(&html);
+    // 3 magnitudes, 3 phases (to 4 kHz), the peak ratio: only the magnitude at 4 kHz fails
+    assert_eq!(v.verdict.gates.len(), 7);
+    assert!(html.contains("1 mechanical gate against the atlas fails"));
+    assert!(html.contains("1 of 7 gates fail"));
+    assert!(html.contains(
+        "<td>|H_V| vs atlas at 4000 Hz</td><td>-6.021 dB</td><td>[-3, 3]</td><td>FAIL</td>"
+    ));
+    assert!(html.contains(
+        "<td>|H_V| vs atlas at 250 Hz</td><td>0.000 dB</td><td>[-3, 3]</td><td>pass</td>"
+    ));
+    // magnitude and phase charts, no static-pressure chart (not computed)
+    let without = page(None);
+    assert_eq!(
+        html.matches("<svg").count(),
+        without.matches("<svg").count() + 2
+    );
+    assert!(html.contains("Goode et al. 1994 band"));
+    assert!(!html.contains("umbo displacement under static pressure"));
+    assert!(without.contains("Not validated"));
 }
