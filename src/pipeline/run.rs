@@ -350,26 +350,6 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     )?;
     timings.push((Stage::Export, t.elapsed().as_secs_f64()));
 
-    let metrics = json!({
-        "case": case.id,
-        "side": side.as_str(),
-        "side_source": side_source,
-        "atlas": atlas.name,
-        "image": geometry,
-        "landmarks": {
-            "patient": points_json(&patient),
-            "registered": points_json(&atlas.landmark_positions(&nodes)),
-        },
-        "rigid": {
-            "atlas_to_patient": fit.transform,
-            "scale": fit.transform.scale,
-            "residuals_mm": fit.residuals_mm,
-            "rms_mm": fit.rms_mm,
-        },
-        "deform": deform_json,
-        "scores": scores.as_ref().map(|(v, _)| v.clone()),
-    });
-    write_json_file(&out.join("metrics.json"), &metrics)?;
     let mut stage_times: Vec<(&'static str, f64)> =
         timings.iter().map(|(s, t)| (s.name(), *t)).collect();
     let mechanics_path = out.join("mechanics.json");
@@ -427,6 +407,31 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         timings: &stage_times,
         total_seconds: started.elapsed().as_secs_f64(),
     };
+    let metrics = json!({
+        "case": case.id,
+        "side": side.as_str(),
+        "side_source": side_source,
+        "atlas": atlas.name,
+        "image": geometry,
+        "landmarks": {
+            "patient": points_json(&patient),
+            "registered": points_json(&atlas.landmark_positions(&nodes)),
+        },
+        "rigid": {
+            "atlas_to_patient": fit.transform,
+            "scale": fit.transform.scale,
+            "residuals_mm": fit.residuals_mm,
+            "rms_mm": fit.rms_mm,
+        },
+        "deform": deform_json,
+        "scores": scores.as_ref().map(|(v, _)| v.clone()),
+        "mechanics": validation.as_ref().map(|v| json!({
+            "passed": v.verdict.passed,
+            "gates": v.verdict.gates.len(),
+            "failed": v.verdict.failures().map(|g| g.name.clone()).collect::<Vec<_>>(),
+        })),
+    });
+    write_json_file(&out.join("metrics.json"), &metrics)?;
     let t = Instant::now();
     let report_path = out.join("report.html");
     let html = case_report_html(&report).map_err(|source| Error::Report {

@@ -120,12 +120,30 @@ fn field(text: &str) -> String {
     }
 }
 
+/// Whether the case's package passed its mechanical gates (`metrics.json` `mechanics`), when
+/// it was validated.
+fn mechanics_passed(entry: &CohortEntry) -> Option<bool> {
+    entry.metrics.as_ref()?["mechanics"]["passed"].as_bool()
+}
+
+fn mechanics_field(entry: &CohortEntry) -> String {
+    match mechanics_passed(entry) {
+        Some(true) => "pass".into(),
+        Some(false) => "fail".into(),
+        None => String::new(),
+    }
+}
+
 fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
     let mut header = vec!["case".to_string(), "status".into(), "structure".into()];
     for stage in ["rigid", "registered"] {
         header.extend(METRICS.iter().map(|m| format!("{stage}_{m}")));
     }
-    header.extend(["masd_improvement".into(), "error".into()]);
+    header.extend([
+        "masd_improvement".into(),
+        "mechanics".into(),
+        "error".into(),
+    ]);
     let blank = vec![String::new(); 2 * METRICS.len() + 1];
     let mut out = header.join(",") + "\n";
     for (entry, outcome) in entries.iter().zip(outcomes) {
@@ -138,6 +156,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
                     row.extend(metric_fields(s.rigid.as_ref()));
                     row.extend(metric_fields(Some(&s.registered)));
                     row.push(s.masd_improvement.map_or(String::new(), |i| i.to_string()));
+                    row.push(mechanics_field(entry));
                     row.push(String::new());
                     out += &(row.join(",") + "\n");
                 }
@@ -150,6 +169,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
                 let mut row = lead.to_vec();
                 row.push(String::new());
                 row.extend(blank.iter().cloned());
+                row.push(mechanics_field(entry));
                 row.push(error);
                 out += &(row.join(",") + "\n");
             }
@@ -167,12 +187,21 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> Result<String, ReportE
             "scored",
             "registered without segmentation",
             "failed",
+            "packages passing the mechanical gates",
         ],
         &[vec![
             entries.len().to_string(),
             count("ok").to_string(),
             count("unscored").to_string(),
             count("failed").to_string(),
+            {
+                let validated: Vec<bool> = entries.iter().filter_map(mechanics_passed).collect();
+                format!(
+                    "{} of {} validated",
+                    validated.iter().filter(|p| **p).count(),
+                    validated.len()
+                )
+            },
         ]],
     );
     let scored: Vec<(&CohortEntry, &BTreeMap<String, StructureMetrics>)> = entries
@@ -295,7 +324,7 @@ mod tests {
                 "malleus": {"registered": distances_json(malleus_masd, 0.14, -0.012, 0.978),
                             "rigid": distances_json(0.15, 0.35, 0.084, 0.648),
                             "masd_improvement": 1.0 - malleus_masd / 0.15},
-            }})),
+            }, "mechanics": {"passed": malleus_masd < 0.1, "gates": 30, "failed": []}})),
             report_link: format!("{case}/report.html"),
             error: None,
         }
@@ -325,7 +354,7 @@ mod tests {
         let report = cohort_report(&entries()).unwrap();
         let lines: Vec<&str> = report.csv.lines().collect();
         let header: Vec<&str> = lines[0].split(',').collect();
-        assert_eq!(header.len(), 23);
+        assert_eq!(header.len(), 24);
         let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
         let rows: Vec<Vec<&str>> = lines[1..5].iter().map(|l| l.split(',').collect()).collect();
         // case-a: malleus (anatomical order) before incus
@@ -345,6 +374,8 @@ mod tests {
         assert_eq!(value(malleus, "registered_meshdev_max"), 0.14 + 0.4);
         assert_eq!(value(malleus, "masd_improvement"), 1.0 - 0.045 / 0.15);
         assert_eq!(malleus[col("error")], "");
+        assert_eq!(malleus[col("mechanics")], "pass");
+        assert!(report.html.contains("<td>1 of 2 validated</td>"));
         // no rigid score: empty cells
         let incus = &rows[1];
         assert_eq!(&incus[..3], ["case-a", "ok", "incus"]);
@@ -352,22 +383,25 @@ mod tests {
         assert_eq!(incus[col("masd_improvement")], "");
         assert_eq!(value(incus, "registered_surface_dice"), 0.99);
         assert_eq!(&rows[2][..3], ["case-b", "ok", "malleus"]);
+        assert_eq!(rows[2][col("mechanics")], "fail");
         // the failed case: one row, its error quoted; the unscored case: one row
         assert_eq!(
             lines[5],
             format!(
                 "case-c,failed,{}\"landmarks: \"\"umbo\"\" missing, line 3\"",
-                ",".repeat(20)
+                ",".repeat(21)
             )
         );
-        assert_eq!(lines[6], format!("case-d,unscored{}", ",".repeat(21)));
+        assert_eq!(lines[6], format!("case-d,unscored{}", ",".repeat(22)));
         assert_eq!(lines.len(), 7);
     }
 
     #[test]
     fn html_counts_plots_links_the_worst_cases_and_lists_the_failed() {
         let html = cohort_report(&entries()).unwrap().html;
-        assert!(html.contains("<tr><td>4</td><td>2</td><td>1</td><td>1</td></tr>"));
+        assert!(html.contains(
+            "<tr><td>4</td><td>2</td><td>1</td><td>1</td><td>1 of 2 validated</td></tr>"
+        ));
         assert_eq!(html.matches("<svg").count(), 2, "MASD and HD95 box plots");
         let b = html
             .find("<tr><td><a href=\"case-b/report.html\">case-b</a></td><td>malleus</td><td>0.250</td><td>0.140</td><td>missed</td></tr>")
