@@ -120,3 +120,22 @@ fn validation_can_be_switched_off() {
         serde_json::from_slice(&std::fs::read(out.join("timings.json")).unwrap()).unwrap();
     assert!(timings.get("validate").is_none() && timings.get("report").is_some());
 }
+
+#[test]
+fn the_shipped_reference_is_the_default_atlas_transfer_function() {
+    use otoatlas::pipeline::mechanics::{compute_embedded_reference, embedded_reference};
+    let shipped = embedded_reference().expect("assets/reference_mechanics.json parses");
+    let fresh = compute_embedded_reference().unwrap();
+    let stale = "stale: rerun `cargo run --release --example write_reference_mechanics`";
+    assert_eq!(shipped.atlas_sha256, fresh.atlas_sha256, "{stale}");
+    let (a, b) = (&shipped.transfer_function, &fresh.transfer_function);
+    assert_eq!(a.points.len(), b.points.len(), "{stale}");
+    assert_eq!((a.drive, a.drive_pa), (b.drive, b.drive_pa), "{stale}");
+    for (p, q) in a.points.iter().zip(&b.points) {
+        assert_eq!(p.frequency_hz, q.frequency_hz, "{stale}");
+        // the solves may differ in the last bits between CPUs (SIMD paths)
+        let rel = (p.magnitude_um_s_per_pa / q.magnitude_um_s_per_pa - 1.0).abs();
+        assert!(rel < 1e-6, "{stale}: {} Hz off by {rel:e}", p.frequency_hz);
+        assert!((p.phase_deg - q.phase_deg).abs() < 1e-4, "{stale}");
+    }
+}

@@ -23,7 +23,7 @@ use crate::fem::{HarmonicSolver, PressureLoad};
 pub const DRIVE_PA: f64 = 0.632;
 
 /// Where the sound drives the middle ear.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Drive {
     /// Pressure on the lateral face of the eardrum.
@@ -61,7 +61,7 @@ pub fn third_octaves(lo: f64, hi: f64) -> Vec<f64> {
 }
 
 /// One frequency of the transfer function.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct TfPoint {
     pub frequency_hz: f64,
     /// |H_V| in µm/s/Pa.
@@ -80,7 +80,7 @@ impl TfPoint {
 }
 
 /// The stapes velocity transfer function at the requested frequencies.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct TransferFunction {
     pub drive: Drive,
     pub drive_pa: f64,

@@ -1,7 +1,10 @@
 //! The mechanical validation of a run's package (`[validate]` in pipeline.toml): the
 //! registered atlas against the atlas it came from (transfer function, and the static-pressure
 //! curve when asked), gates relative to the atlas (docs/mechanics.md). The atlas's own
-//! mechanics are computed once per process and atlas, so a cohort shares them.
+//! mechanics are computed once per process and atlas, so a cohort shares them; the embedded
+//! default atlas's transfer function ships with the binary (`assets/reference_mechanics.json`,
+//! written by `cargo run --release --example write_reference_mechanics`, checked against a
+//! fresh computation by a test), so a single `run` does not recompute it.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, LazyLock, Mutex};
@@ -12,15 +15,57 @@ use crate::Error;
 use crate::atlas::Atlas;
 use crate::config::ValidateConfig;
 use crate::export::atlas_sha256;
+use serde::{Deserialize, Serialize};
+
+use crate::atlas::{Side, load_atlas};
 use crate::mechanics::{
-    Mechanics, UdspOptions, Validation, ValidationOptions, mechanics, validate_package_against,
+    Mechanics, StaticCurve, TfaOptions, TransferFunction, UdspOptions, Validation,
+    ValidationOptions, mechanics, validate_package_against,
 };
 
-type Slot = Arc<Mutex<Option<Arc<Mechanics>>>>;
+/// (atlas SHA-256, with the static-pressure curve).
+type ReferenceKey = (String, bool);
 
-/// The atlases' own mechanics, by (atlas SHA-256, with the static-pressure curve).
-static REFERENCES: LazyLock<Mutex<BTreeMap<(String, bool), Slot>>> =
+/// The atlases' own mechanics.
+static REFERENCES: LazyLock<Mutex<BTreeMap<ReferenceKey, Arc<Mechanics>>>> =
     LazyLock::new(|| Mutex::new(BTreeMap::new()));
+
+/// The embedded default atlas's transfer function (default `TfaOptions`) and the SHA-256 of
+/// the atlas it belongs to, on each side.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EmbeddedReference {
+    pub atlas_sha256: Vec<String>,
+    pub transfer_function: TransferFunction,
+}
+
+const EMBEDDED_REFERENCE: &str = include_str!("../../assets/reference_mechanics.json");
+
+/// The shipped reference (`None` if it does not parse, which a test rules out).
+pub fn embedded_reference() -> Option<EmbeddedReference> {
+    serde_json::from_str(EMBEDDED_REFERENCE).ok()
+}
+
+/// Computes what `assets/reference_mechanics.json` holds: the default atlas's transfer
+/// function, for the default atlas mirrored to either side.
+pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
+    let mut atlas_sha = Vec::new();
+    for side in [Side::Right, Side::Left] {
+        atlas_sha.push(atlas_sha256(&load_atlas(None, Some(side))?)?);
+    }
+    let atlas = load_atlas(None, None)?;
+    let m = mechanics(
+        &atlas,
+        atlas.nodes(),
+        &ValidationOptions {
+            udsp: None,
+            ..ValidationOptions::default()
+        },
+    )?;
+    Ok(EmbeddedReference {
+        atlas_sha256: atlas_sha,
+        transfer_function: m.transfer_function,
+    })
+}
 
 /// What `[validate]` asks for: the default 1/3-octave transfer function, and the gate
 /// pressures ±1, ±2, ±4 kPa when `static_pressure` is on.
@@ -34,21 +79,33 @@ pub fn options(cfg: &ValidateConfig) -> ValidationOptions {
     }
 }
 
-/// The atlas's mechanics at its rest shape, computed on the first call for this atlas.
+/// The atlas's mechanics at its rest shape, computed on the first call for this atlas. No
+/// lock is held while computing: the solves run on rayon, whose waiting threads may pick up
+/// another case of the cohort, which would then wait for a lock its own thread holds. Two
+/// cases that start together may both compute it; the first result is kept.
 fn reference(atlas: &Atlas, options: &ValidationOptions) -> Result<Arc<Mechanics>, Error> {
     let key = (atlas_sha256(atlas)?, options.udsp.is_some());
-    let slot = {
-        let mut map = REFERENCES.lock().unwrap_or_else(|e| e.into_inner());
-        map.entry(key).or_default().clone()
+    let cached = |key: &ReferenceKey| {
+        let map = REFERENCES.lock().unwrap_or_else(|e| e.into_inner());
+        map.get(key).cloned()
     };
-    // held while computing: a second case of the same atlas waits instead of computing again
-    let mut cached = slot.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(m) = cached.as_ref() {
-        return Ok(m.clone());
+    if let Some(m) = cached(&key) {
+        return Ok(m);
+    }
+    if options.udsp.is_none() && options.tfa == TfaOptions::default() {
+        let shipped = embedded_reference().filter(|r| r.atlas_sha256.contains(&key.0));
+        if let Some(r) = shipped {
+            return Ok(Arc::new(Mechanics {
+                transfer_function: r.transfer_function,
+                udsp: StaticCurve { points: Vec::new() },
+                tfa_seconds: 0.0,
+                udsp_seconds: 0.0,
+            }));
+        }
     }
     let m = Arc::new(mechanics(atlas, atlas.nodes(), options)?);
-    *cached = Some(m.clone());
-    Ok(m)
+    let mut map = REFERENCES.lock().unwrap_or_else(|e| e.into_inner());
+    Ok(map.entry(key).or_insert(m).clone())
 }
 
 /// Validates `atlas` with its nodes at `registered` against `atlas` itself.
