@@ -105,6 +105,14 @@ fn fixture() -> Fixture {
 }
 
 fn html(f: &Fixture, accuracy: Accuracy) -> String {
+    html_with(f, accuracy, None)
+}
+
+fn html_with(
+    f: &Fixture,
+    accuracy: Accuracy,
+    mechanics: Option<&crate::mechanics::Validation>,
+) -> String {
     let sampler = Sampler::new(&f.image.volume).unwrap();
     case_report_html(&CaseReportInput {
         case_id: "case-<7>",
@@ -118,7 +126,7 @@ fn html(f: &Fixture, accuracy: Accuracy) -> String {
         registered_nodes: &f.registered,
         deform: &f.deform,
         accuracy,
-        mechanics: None,
+        mechanics,
         timings: &[("ingest", 0.5), ("deform", 1.25)],
         total_seconds: 2.0,
     })
@@ -325,27 +333,8 @@ fn validation() -> crate::mechanics::Validation {
 #[test]
 fn a_validated_package_shows_its_gates_and_charts() {
     let f = fixture();
-    let sampler = Sampler::new(&f.image.volume).unwrap();
     let v = validation();
-    let page = |mechanics| {
-        case_report_html(&CaseReportInput {
-            case_id: "case-<7>",
-            image: &f.image,
-            sampler: &sampler,
-            side: Side::Right,
-            side_source: "landmark file",
-            atlas: &f.atlas,
-            fit: &f.fit,
-            rigid_nodes: &f.rigid,
-            registered_nodes: &f.registered,
-            deform: &f.deform,
-            accuracy: Accuracy::NoSegmentation,
-            mechanics,
-            timings: &[],
-            total_seconds: 1.0,
-        })
-        .unwrap()
-    };
+    let page = |mechanics| html_with(&f, Accuracy::NoSegmentation, mechanics);
     let html = page(Some(&v));
     is_self_contained(&html);
     // 3 magnitudes, 3 phases (to 4 kHz), the peak ratio: only the magnitude at 4 kHz fails
