@@ -10,8 +10,8 @@ mod common {
 }
 
 use nalgebra::Point3;
-use otoatlas::mesh::{TriMesh, shapes};
 use otoatlas::config::Config;
+use otoatlas::mesh::{TriMesh, shapes};
 use otoatlas::meshdev::structures::{default_label_table, load_structures};
 use otoatlas::meshdev::{CompareOptions, Directed, Sampling, compare, sample_surface};
 
@@ -101,8 +101,8 @@ fn directed_statistics_agree_with_trimesh() {
 /// pair a user scores, with staircase facets and sub-millimetre features.
 #[test]
 fn sample_case_ossicles_agree_with_trimesh() {
-    let segmentation = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("sample_cases/case-001/segmentation");
+    let segmentation =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_cases/case-001/segmentation");
     let ingest = Config::default_config().unwrap().ingest;
     let labels = load_structures(
         &segmentation.join("labels.nii.gz"),
@@ -118,10 +118,9 @@ fn sample_case_ossicles_agree_with_trimesh() {
         ..CompareOptions::with_tolerance(0.184)
     };
     for name in ["malleus", "incus", "stapes"] {
-        let truth = otoatlas::meshdev::structures::read_surface(
-            &segmentation.join(format!("{name}.ply")),
-        )
-        .unwrap();
+        let truth =
+            otoatlas::meshdev::structures::read_surface(&segmentation.join(format!("{name}.ply")))
+                .unwrap();
         let label = &labels
             .iter()
             .find(|s| s.name == name)
@@ -141,9 +140,20 @@ fn sample_case_ossicles_agree_with_trimesh() {
             "{name}: truth->labels mean {:.4} max {:.4} (trimesh {:.4} {:.4})",
             s.test_to_ref.mean, s.test_to_ref.max, theirs.test_to_ref.mean, theirs.test_to_ref.max
         );
-        agree(&s.test_to_ref, &theirs.test_to_ref, &format!("{name} truth->labels"));
-        agree(&s.ref_to_test, &theirs.ref_to_test, &format!("{name} labels->truth"));
+        agree(
+            &s.test_to_ref,
+            &theirs.test_to_ref,
+            &format!("{name} truth->labels"),
+        );
+        agree(
+            &s.ref_to_test,
+            &theirs.ref_to_test,
+            &format!("{name} labels->truth"),
+        );
         // a voxelised surface is not the smooth truth: real, sub-voxel distances
-        assert!(s.test_to_ref.mean > 0.005 && s.test_to_ref.mean < 0.184, "{name}");
+        assert!(
+            s.test_to_ref.mean > 0.005 && s.test_to_ref.mean < 0.184,
+            "{name}"
+        );
     }
 }

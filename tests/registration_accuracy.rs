@@ -80,8 +80,9 @@ fn score(case: &Path, out: &Path) -> Scored {
     }
 }
 
-/// The acceptance bounds of the registration issue, per ossicle, and the improvement of the
-/// deformable stage over rigid alone on the chain (mean MASD of the three ossicles).
+/// The acceptance bounds of the registration issue, per ossicle (MASD, HD95, and the
+/// deformable stage's improvement over rigid alone, ≥ 40 %), and the improvement on the
+/// chain (mean MASD of the three ossicles).
 fn check(s: &Scored) {
     for (name, rigid, fin, hd95) in &s.structures {
         eprintln!(
@@ -99,6 +100,12 @@ fn check(s: &Scored) {
                 *hd95 <= 2.0 * s.spacing,
                 "{} {name}: HD95 {hd95} > two voxels",
                 s.case
+            );
+            assert!(
+                *fin <= 0.6 * rigid,
+                "{} {name}: the deformable stage improved MASD by {:.0} % ({rigid} -> {fin})",
+                s.case,
+                100.0 * (1.0 - fin / rigid)
             );
         } else {
             // the eardrum: a sheet thinner than a voxel, within a voxel

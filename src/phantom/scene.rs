@@ -27,6 +27,10 @@ use super::variability::DETAILED_LIPSCHITZ;
 use crate::atlas::materials::anatomical_thickness_mm;
 use crate::atlas::{Anatomy, MembraneRegion};
 
+/// Width of the stapedial annular ligament between the footplate's rim and the oval window's
+/// bony rim (about 0.1 mm: Kwacz et al. 2015) [mm].
+const ANNULAR_GAP_MM: f64 = 0.1;
+
 /// The grey levels of each tissue [HU].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -65,7 +69,7 @@ pub struct CavityParams {
     pub depth_behind_drum_mm: f64,
     /// Radius of the otic capsule block around the footplate [mm].
     pub capsule_radius_mm: f64,
-    /// Semi-axes of the vestibule ellipsoid behind the footplate [mm].
+    /// Depth of the vestibule behind the footplate (its opening is the oval window) [mm].
     pub vestibule_radius_mm: f64,
 }
 
@@ -172,14 +176,22 @@ impl EarScene<'_> {
             .min((depth - 0.5 * fp.thickness).abs())
             .min((from_fp - self.cavity.capsule_radius_mm).abs());
         if depth > 0.5 * fp.thickness && from_fp < self.cavity.capsule_radius_mm {
-            let centre = fp.center + fp.frame.e3 * self.cavity.vestibule_radius_mm;
-            let r = (p - centre).norm();
-            clearance = clearance.min((r - self.cavity.vestibule_radius_mm).abs());
-            let hu = if r < self.cavity.vestibule_radius_mm {
-                l.fluid
-            } else {
-                l.otic_capsule
-            };
+            // the vestibule: a half-ellipsoid behind the oval window, whose opening is the
+            // footplate's outline plus the annular ligament's gap, so the whole medial face
+            // of the footplate bathes in perilymph and the capsule bone frames its rim
+            let q = fp.frame.local(&(p - fp.center));
+            let axes = [
+                fp.semi_axes[0] + ANNULAR_GAP_MM,
+                fp.semi_axes[1] + ANNULAR_GAP_MM,
+                self.cavity.vestibule_radius_mm,
+            ];
+            let k = ((q.x / axes[0]).powi(2)
+                + (q.y / axes[1]).powi(2)
+                + ((depth - 0.5 * fp.thickness) / axes[2]).powi(2))
+            .sqrt();
+            // k - 1 is Lipschitz with constant 1 / (smallest semi-axis)
+            clearance = clearance.min((k - 1.0).abs() * axes[0].min(axes[1]).min(axes[2]));
+            let hu = if k < 1.0 { l.fluid } else { l.otic_capsule };
             return done(hu, clearance);
         }
         if drum.s <= 1.0 {
@@ -235,6 +247,18 @@ mod tests {
         // behind the footplate: vestibule fluid, then capsule bone further out
         let fp = a.footplate();
         assert_eq!(hu(&s, &(fp.center + fp.frame.e3 * 1.0)), l.fluid);
+        // the whole medial face of the footplate faces fluid, out to its rim; beyond the
+        // oval window's opening, capsule bone
+        let behind = fp.frame.e3 * (0.5 * fp.thickness + 0.15);
+        for (u, v) in [(0.9, 0.0), (0.0, 0.9), (-0.9, 0.0), (0.6, -0.6)] {
+            let rim = fp.frame.e1 * (u * fp.semi_axes[0]) + fp.frame.e2 * (v * fp.semi_axes[1]);
+            assert_eq!(hu(&s, &(fp.center + rim + behind)), l.fluid, "({u}, {v})");
+            assert_eq!(
+                hu(&s, &(fp.center + rim * 1.5 + behind)),
+                l.otic_capsule,
+                "({u}, {v})"
+            );
+        }
         assert_eq!(hu(&s, &(fp.center + fp.frame.e3 * 3.2)), l.otic_capsule);
         // far from everything (medial, beyond any wall): temporal bone
         assert_eq!(

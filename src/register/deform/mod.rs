@@ -15,8 +15,10 @@
 //!   the registration modulus `regularisation_modulus_pa`: with the real 1.41e10 Pa no spring
 //!   of sensible stiffness could move anything. Springs have stiffness per unit surface area.
 //! - The static solver never accepts an inverted element: if no admissible step exists the
-//!   stage keeps the last valid state and goes on with springs half as stiff (the FEM then
-//!   smooths more); after four halvings it stops there and says so.
+//!   stage keeps the last valid state and goes on with the springs around the element that
+//!   would invert (within [`SOFTEN_RADIUS_MM`]) half as stiff, so the FEM smooths more there
+//!   while the rest of the chain keeps converging; after four halvings at one place it stops
+//!   there and says so.
 
 mod probe;
 
@@ -24,7 +26,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
+use crate::fem::{ElementId, FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
 use crate::image::Sampler;
 use crate::progress::Progress;
 pub use probe::{Border, ProbeConfig, ProbeKind, probe};
@@ -37,6 +39,9 @@ const PLATEAU_ITERATIONS: usize = 3;
 
 /// Springs are halved when they would invert an element, down to this factor.
 const MIN_SPRING_SCALE: f64 = 1.0 / 16.0;
+/// ... those within this distance of the element's centroid [mm] (a bone's local shape
+/// detail; the stapes is 3 mm long).
+const SOFTEN_RADIUS_MM: f64 = 1.0;
 
 /// Knobs of the deformable stage (`[deform]` in pipeline.toml).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -88,7 +93,8 @@ pub struct IterationStats {
     pub max_update_mm: f64,
     /// 99th percentile of the nodal updates [mm]: the convergence measure.
     pub p99_update_mm: f64,
-    /// Factor on the spring stiffness (halved each time a step would invert an element).
+    /// Smallest factor on a node's spring stiffness (halved around an element each time a
+    /// step would invert it).
     pub spring_scale: f64,
 }
 
@@ -147,7 +153,7 @@ pub fn deform(
     };
     let mut status = DeformStatus::MaxIterations;
     let (mut best_offset, mut stalled) = (f64::INFINITY, 0usize);
-    let mut spring_scale = 1.0;
+    let mut spring_scale = vec![1.0f64; n];
     for iteration in 1..=cfg.max_iterations {
         let borders: Vec<Option<(Border, f64)>> = probes
             .par_iter()
@@ -180,7 +186,8 @@ pub fn deform(
             &borders,
             &kept,
             &x,
-            cfg.spring_stiffness_per_area * spring_scale,
+            cfg.spring_stiffness_per_area,
+            &spring_scale,
         );
         let used = kept.iter().filter(|k| **k).count();
         let mean_offset = borders
@@ -205,7 +212,7 @@ pub fn deform(
             mean_offset_mm: mean_offset,
             max_update_mm: max_update,
             p99_update_mm: p99_update,
-            spring_scale,
+            spring_scale: spring_scale.iter().copied().fold(1.0, f64::min),
         });
         bar.inc(1);
         match outcome {
@@ -213,9 +220,8 @@ pub fn deform(
             // the springs pull some element inside out: keep the last admissible state and
             // go on with softer springs (the FEM then smooths more); give up when they are
             // too soft to register anything
-            Err(e @ FemError::StepRejected { .. }) => {
-                spring_scale *= 0.5;
-                if spring_scale < MIN_SPRING_SCALE {
+            Err(e @ FemError::StepRejected { element, .. }) => {
+                if soften_around(model, element, &x, &mut spring_scale) < MIN_SPRING_SCALE {
                     status = DeformStatus::InversionGuard {
                         message: e.to_string(),
                     };
@@ -246,6 +252,38 @@ pub fn deform(
         history,
         status,
     })
+}
+
+/// Halves the springs of the nodes within [`SOFTEN_RADIUS_MM`] of `element` (a membrane
+/// element too: the eardrum's nodes have no springs, but the stage must still end); returns
+/// the smallest factor now left on the element's own nodes.
+fn soften_around(
+    model: &FemModel,
+    element: ElementId,
+    x: &[Point3<f64>],
+    scale: &mut [f64],
+) -> f64 {
+    let nodes: Vec<u32> = match element {
+        ElementId::Tet(e) => model.tets.get(e).map(|t| t.nodes.to_vec()),
+        ElementId::Membrane(e) => model.membranes.get(e).map(|t| t.nodes.to_vec()),
+    }
+    .unwrap_or_default();
+    if nodes.is_empty() {
+        // not an element of this model: soften everywhere
+        scale.iter_mut().for_each(|s| *s *= 0.5);
+        return scale.iter().copied().fold(1.0, f64::min);
+    }
+    let centre = nodes
+        .iter()
+        .map(|&k| x[k as usize].coords)
+        .sum::<Vector3<f64>>()
+        / nodes.len() as f64;
+    for (s, p) in scale.iter_mut().zip(x) {
+        if (p.coords - centre).norm() <= SOFTEN_RADIUS_MM {
+            *s *= 0.5;
+        }
+    }
+    nodes.iter().map(|&k| scale[k as usize]).fold(1.0, f64::min)
 }
 
 /// For each probe triangle, the probe triangles sharing a node with it.
@@ -296,14 +334,15 @@ fn screen(borders: &[Option<(Border, f64)>], neighbours: &[Vec<u32>], tolerance:
 }
 
 /// One spring per node that has kept border points around it: target = position + the
-/// area-weighted mean displacement of its triangles; stiffness = per-area stiffness x a third
-/// of the area of those triangles.
+/// area-weighted mean displacement of its triangles; stiffness = per-area stiffness x the
+/// node's factor `scale` x a third of the area of those triangles.
 fn node_springs(
     probes: &[ProbeTriangle],
     borders: &[Option<(Border, f64)>],
     kept: &[bool],
     x: &[Point3<f64>],
     stiffness_per_area: f64,
+    scale: &[f64],
 ) -> Vec<Spring> {
     let n = x.len();
     let mut sum = vec![Vector3::zeros(); n];
@@ -325,7 +364,7 @@ fn node_springs(
         .map(|k| Spring {
             node: k as u32,
             target: x[k] + sum[k] / weight[k],
-            stiffness: stiffness_per_area * weight[k] / 3.0,
+            stiffness: stiffness_per_area * scale[k] * weight[k] / 3.0,
         })
         .collect()
 }
