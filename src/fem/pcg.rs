@@ -60,9 +60,14 @@ impl Pcg {
             x.fill(0.0);
             return Ok(0);
         }
-        apply(x, &mut self.q)?;
-        for ((r, b), q) in self.r.iter_mut().zip(b).zip(&self.q) {
-            *r = b - q;
+        if x.iter().all(|v| *v == 0.0) {
+            // a zero initial guess needs no product
+            self.r.copy_from_slice(b);
+        } else {
+            apply(x, &mut self.q)?;
+            for ((r, b), q) in self.r.iter_mut().zip(b).zip(&self.q) {
+                *r = b - q;
+            }
         }
         let mut rz = 0.0;
         for iteration in 0..max_iterations {

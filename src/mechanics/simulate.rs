@@ -105,7 +105,7 @@ pub struct Simulator<'s> {
     state: CorotationalState,
     x: Vec<Point3<f64>>,
     v: Vec<Vector3<f64>>,
-    /// The last velocity solution, flat (the CG initial guess).
+    /// The new velocity, flat (the CG solution).
     velocity: Vec<f64>,
     forces: Vec<Vector3<f64>>,
     rhs: Vec<f64>,
@@ -251,6 +251,11 @@ impl<'s> Simulator<'s> {
         let apply = |p: &[f64], y: &mut [f64]| {
             operator.apply(model, state, scale, diagonal, &s.fixed, p, y)
         };
+        // CG from zero: the steps are quasi-static (the Rayleigh damping settles the ear well
+        // within one 0.04 s step), so the last velocity is no better a guess, and a zero one
+        // saves a product (measured: 1.2 CG iterations per step from zero, 1.3 from the last
+        // velocity)
+        self.velocity.fill(0.0);
         match self.pcg.solve(
             apply,
             &mut self.cholesky,
