@@ -1,11 +1,13 @@
 //! The mechanics of the embedded atlas: its transfer function passes the literature gates; a
 //! rigidly moved copy (a "package" differing by a rigid motion only) has identical
 //! mechanics; the follower-pressure static solve at low pressure agrees with the harmonic
-//! solver at zero frequency (two independent code paths: Newton + Cholesky, complex LU).
+//! solver at zero frequency (two independent code paths: Newton + Cholesky, complex LU); the
+//! real-time simulation under a constant pressure settles on the static solution.
 
 use nalgebra::{Point3, Rotation3, Vector3};
 use otoatlas::atlas::default_atlas;
 use otoatlas::fem::HarmonicSolver;
+use otoatlas::mechanics::simulate::{SimulationOptions, simulate};
 use otoatlas::mechanics::{
     MechanicalSystem, StaticCurve, TfaOptions, UdspOptions, literature_verdict,
     static_pressure_curve, transfer_function,
@@ -114,4 +116,44 @@ fn low_static_pressure_matches_the_zero_frequency_harmonic_solution() {
         (nonlinear - linear).abs() < 0.01 * linear.abs(),
         "{nonlinear} vs {linear}"
     );
+}
+
+/// Backward Euler (one linearised solve per step, matrix-free CG with a stale Cholesky
+/// preconditioner) under a constant 1 kPa comes to rest on the static equilibrium of the
+/// incremental Newton solve: a step's fixed point is a zero out-of-balance force whatever the
+/// solver's tolerance, so this checks the simulation's forces and its convergence.
+#[test]
+fn simulation_under_constant_pressure_settles_on_the_static_solution() {
+    let atlas = default_atlas().unwrap();
+    let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
+    let p = 1000.0;
+    let sim = simulate(
+        &system,
+        &SimulationOptions {
+            steps: 200,
+            pressure_pa: p,
+            ..SimulationOptions::default()
+        },
+    )
+    .unwrap();
+    let curve = static_pressure_curve(
+        &system,
+        &UdspOptions {
+            pressures_pa: vec![p],
+            tolerance_mm: 1e-8,
+            ..UdspOptions::default()
+        },
+    )
+    .unwrap();
+    let stat = curve.at(p).unwrap();
+    let last = sim.frames.last().unwrap().umbo_medial_mm;
+    let before = sim.frames[sim.frames.len() - 11].umbo_medial_mm;
+    println!(
+        "umbo at {p} Pa: simulated {last:e} mm (10 steps before {before:e}), static {stat:e} mm; \
+         {:.2} CG iterations/step, {} factorisations",
+        sim.mean_cg_iterations, sim.factorisations
+    );
+    assert_eq!(sim.failed_elements, 0);
+    assert!((last - stat).abs() < 1e-5 * stat, "{last} vs {stat}");
+    assert!((last - before).abs() < 1e-5 * stat, "{last} vs {before}");
 }

@@ -100,6 +100,38 @@ impl<const N: usize> CorotElement<N> {
         p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
     }
 
+    /// The tensile part σ⁺ of the element's stress (Pa) at rotation `r` and deformation `f`.
+    pub fn tension(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
+        tensile_part(&self.stress(r, f), &self.rest_normal)
+    }
+
+    /// `scale` times the warped stiffness R K Rᵀ applied to the nodal vectors `p` (one per
+    /// node): (K p)_a = w R σ(Rᵀ δF) g_a with δF = Σ_b p_b g_bᵀ and σ the linear stress of
+    /// [`CorotElement::stress`] (without its rest offset), equal to Σ_b
+    /// [`CorotElement::warped_blocks`] p_b.
+    pub fn warped_product(
+        &self,
+        r: &Matrix3<f64>,
+        p: &[Vector3<f64>; N],
+        scale: f64,
+    ) -> [Vector3<f64>; N] {
+        let df = p
+            .iter()
+            .zip(&self.grads)
+            .fold(Matrix3::zeros(), |m, (p, g)| m + p * g.transpose());
+        let h = r.transpose() * df;
+        let sym = (h + h.transpose()) * 0.5;
+        let sigma = if N == 4 {
+            Matrix3::identity() * (self.lame.lambda * sym.trace()) + sym * (2.0 * self.lame.mu)
+        } else {
+            let pr = self.projector();
+            let eps = pr * sym * pr;
+            pr * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+        };
+        let rs = r * sigma * (self.measure * scale);
+        self.grads.map(|g| rs * g)
+    }
+
     /// Visits the stress (initial-stress, geometric) stiffness of the element for every local
     /// pair a ≤ b as the scalar w·g_aᵀ σ⁺ g_b (the block is that times I₃), with σ⁺ the
     /// tensile part of σ (negative principal stresses dropped, so the term is positive
@@ -110,7 +142,7 @@ impl<const N: usize> CorotElement<N> {
         f: &Matrix3<f64>,
         mut visit: impl FnMut(usize, usize, f64),
     ) {
-        let tension = tensile_part(&self.stress(r, f), &self.rest_normal);
+        let tension = self.tension(r, f);
         for a in 0..N {
             let ta = tension * self.grads[a];
             for b in a..N {

@@ -1,11 +1,10 @@
-//! Conjugate gradients on a symmetric positive-definite matrix given by its lower triangle,
-//! preconditioned by a (possibly stale) sparse Cholesky factor: the scheme of Courtecuisse,
+//! Conjugate gradients on a symmetric positive-definite operator (a matrix-free product, e.g.
+//! `StepOperator::apply`), preconditioned by a (possibly stale) sparse Cholesky factor: the scheme of Courtecuisse,
 //! Allard, Duriez & Cotin 2010 ("asynchronous preconditioners", SOFA's PCGLinearSolver with
 //! an AsyncSparseLDLSolver preconditioner; mechanics-metrics §2.6). With a factor of the
 //! current matrix it converges in one iteration; with one a few steps old, in a few.
-//! Buffers are allocated once per solver and reused.
-
-use faer::sparse::SparseColMatRef;
+//! Buffers are allocated once per solver and reused; the residual is tested before the
+//! preconditioner is applied, so the last iteration costs no preconditioner solve.
 
 use super::cholesky::SparseCholesky;
 use super::error::FemError;
@@ -17,24 +16,6 @@ pub struct Pcg {
     z: Vec<f64>,
     p: Vec<f64>,
     q: Vec<f64>,
-}
-
-/// y = A x for A symmetric, stored as its lower triangle (CSC).
-fn symmetric_product(a: SparseColMatRef<'_, usize, f64>, x: &[f64], y: &mut [f64]) {
-    y.fill(0.0);
-    let (col_ptr, row_idx, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-    for j in 0..a.ncols() {
-        let xj = x[j];
-        let mut acc = 0.0;
-        for k in col_ptr[j]..col_ptr[j + 1] {
-            let i = row_idx[k];
-            y[i] += val[k] * xj;
-            if i != j {
-                acc += val[k] * x[i];
-            }
-        }
-        y[j] += acc;
-    }
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -52,24 +33,20 @@ impl Pcg {
         }
     }
 
-    /// Solves A x = b to ‖r‖ ≤ `tolerance`·‖b‖ from the initial guess in `x`, preconditioned
-    /// by `factor`; returns the number of iterations (`IterativeNotConverged` after
-    /// `max_iterations`).
+    /// Solves A x = b to ‖r‖ ≤ `tolerance`·‖b‖ from the initial guess in `x`, with
+    /// `apply(v, out)` writing A v, preconditioned by `factor`; returns the number of
+    /// iterations (`IterativeNotConverged` after `max_iterations`).
     pub fn solve(
         &mut self,
-        a: SparseColMatRef<'_, usize, f64>,
+        mut apply: impl FnMut(&[f64], &mut [f64]) -> Result<(), FemError>,
         factor: &mut SparseCholesky,
         b: &[f64],
         x: &mut [f64],
         tolerance: f64,
         max_iterations: usize,
     ) -> Result<usize, FemError> {
-        let n = a.nrows();
-        for (what, len) in [
-            ("right-hand side", b.len()),
-            ("solution", x.len()),
-            ("work", self.r.len()),
-        ] {
+        let n = self.r.len();
+        for (what, len) in [("right-hand side", b.len()), ("solution", x.len())] {
             if len != n {
                 return Err(FemError::LengthMismatch {
                     what,
@@ -83,37 +60,42 @@ impl Pcg {
             x.fill(0.0);
             return Ok(0);
         }
-        symmetric_product(a, x, &mut self.q);
-        for ((r, b), q) in self.r.iter_mut().zip(b).zip(&self.q) {
-            *r = b - q;
+        if x.iter().all(|v| *v == 0.0) {
+            // a zero initial guess needs no product
+            self.r.copy_from_slice(b);
+        } else {
+            apply(x, &mut self.q)?;
+            for ((r, b), q) in self.r.iter_mut().zip(b).zip(&self.q) {
+                *r = b - q;
+            }
         }
-        self.z.copy_from_slice(&self.r);
-        factor.solve_in_place(&mut self.z)?;
-        self.p.copy_from_slice(&self.z);
-        let mut rz = dot(&self.r, &self.z);
-        let mut residual = dot(&self.r, &self.r).sqrt() / b_norm;
-        for iteration in 0..=max_iterations {
-            if residual <= tolerance {
+        let mut rz = 0.0;
+        for iteration in 0..max_iterations {
+            if dot(&self.r, &self.r).sqrt() <= tolerance * b_norm {
                 return Ok(iteration);
             }
-            if iteration == max_iterations {
-                break;
+            self.z.copy_from_slice(&self.r);
+            factor.solve_in_place(&mut self.z)?;
+            let rz_new = dot(&self.r, &self.z);
+            if iteration == 0 {
+                self.p.copy_from_slice(&self.z);
+            } else {
+                let beta = rz_new / rz;
+                for (p, z) in self.p.iter_mut().zip(&self.z) {
+                    *p = z + beta * *p;
+                }
             }
-            symmetric_product(a, &self.p, &mut self.q);
+            rz = rz_new;
+            apply(&self.p, &mut self.q)?;
             let alpha = rz / dot(&self.p, &self.q);
             for (((x, r), p), q) in x.iter_mut().zip(&mut self.r).zip(&self.p).zip(&self.q) {
                 *x += alpha * p;
                 *r -= alpha * q;
             }
-            residual = dot(&self.r, &self.r).sqrt() / b_norm;
-            self.z.copy_from_slice(&self.r);
-            factor.solve_in_place(&mut self.z)?;
-            let rz_new = dot(&self.r, &self.z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for (p, z) in self.p.iter_mut().zip(&self.z) {
-                *p = z + beta * *p;
-            }
+        }
+        let residual = dot(&self.r, &self.r).sqrt() / b_norm;
+        if residual <= tolerance {
+            return Ok(max_iterations);
         }
         Err(FemError::IterativeNotConverged {
             iterations: max_iterations,

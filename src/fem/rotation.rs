@@ -17,6 +17,11 @@ const MAX_SVD_SWEEPS: usize = 64;
 /// Newton iterations before falling back to the SVD.
 const MAX_NEWTON: usize = 12;
 
+/// The iteration stops after a Newton update of at most this (Frobenius norm): it converges
+/// quadratically, so the iterate it returns is then within about its square (1e-16, the
+/// rounding level) of the rotation, one iteration earlier than waiting for a negligible update.
+const NEWTON_LAST_UPDATE: f64 = 1e-8;
+
 /// The proper rotation (det = +1) closest to `f` in the Frobenius norm.
 pub(crate) fn polar_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
     if f.determinant() > 0.0 {
@@ -28,7 +33,7 @@ pub(crate) fn polar_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
             let next = (x + inv.transpose()) * 0.5;
             let change = (next - x).norm();
             x = next;
-            if change <= 1e-14 {
+            if change <= NEWTON_LAST_UPDATE {
                 return x;
             }
         }
