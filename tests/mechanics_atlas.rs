@@ -70,21 +70,26 @@ fn a_rigidly_moved_atlas_has_identical_mechanics() {
     assert!((u0 - u1).abs() < 1e-4 * u0.abs(), "{u0} vs {u1}");
 }
 
+/// The umbo's static displacement (mm, medial) at pressure `p`, solved to `tolerance_mm`.
+fn static_umbo(system: &MechanicalSystem, p: f64, tolerance_mm: f64) -> f64 {
+    let curve = static_pressure_curve(
+        system,
+        &UdspOptions {
+            pressures_pa: vec![p],
+            tolerance_mm,
+            ..UdspOptions::default()
+        },
+    )
+    .unwrap();
+    curve.at(p).unwrap()
+}
+
 #[test]
 fn low_static_pressure_matches_the_zero_frequency_harmonic_solution() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
     let p = 2.0;
-    let curve = static_pressure_curve(
-        &system,
-        &UdspOptions {
-            pressures_pa: vec![p],
-            tolerance_mm: 1e-9,
-            ..UdspOptions::default()
-        },
-    )
-    .unwrap();
-    let nonlinear = curve.at(p).unwrap();
+    let nonlinear = static_umbo(&system, p, 1e-9);
     let harmonic = HarmonicSolver::new(
         &system.model,
         &system.fixed,
@@ -136,16 +141,7 @@ fn simulation_under_constant_pressure_settles_on_the_static_solution() {
         },
     )
     .unwrap();
-    let curve = static_pressure_curve(
-        &system,
-        &UdspOptions {
-            pressures_pa: vec![p],
-            tolerance_mm: 1e-8,
-            ..UdspOptions::default()
-        },
-    )
-    .unwrap();
-    let stat = curve.at(p).unwrap();
+    let stat = static_umbo(&system, p, 1e-8);
     let last = sim.frames.last().unwrap().umbo_medial_mm;
     let before = sim.frames[sim.frames.len() - 11].umbo_medial_mm;
     println!(
