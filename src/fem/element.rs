@@ -94,10 +94,27 @@ impl<const N: usize> CorotElement<N> {
     /// Corotated small-strain stress σ (Pa) in the rest frame: H = RᵀF − P,
     /// ε = P sym(H) P, σ = λ tr(ε) P + 2μ ε.
     pub fn stress(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
-        let p = self.projector();
-        let h = r.transpose() * f - p;
-        let eps = p * (h + h.transpose()) * p * 0.5;
-        p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+        self.linear_stress(&(r.transpose() * f - self.projector()))
+    }
+
+    /// The material law σ(H) = λ tr(ε) P + 2μ ε, ε = P sym(H) P, of a displacement gradient
+    /// `h` in the rest frame (P = I for a tetrahedron, whose product is skipped).
+    fn linear_stress(&self, h: &Matrix3<f64>) -> Matrix3<f64> {
+        let sym = (h + h.transpose()) * 0.5;
+        if N == 4 {
+            Matrix3::identity() * (self.lame.lambda * sym.trace()) + sym * (2.0 * self.lame.mu)
+        } else {
+            let p = self.projector();
+            let eps = p * sym * p;
+            p * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+        }
+    }
+
+    /// The gradient Σ_a p_a g_aᵀ of the nodal vectors `p` (one per node) over the element.
+    pub fn gradient(&self, p: &[Vector3<f64>; N]) -> Matrix3<f64> {
+        p.iter()
+            .zip(&self.grads)
+            .fold(Matrix3::zeros(), |m, (p, g)| m + p * g.transpose())
     }
 
     /// The tensile part σ⁺ of the element's stress (Pa) at rotation `r` and deformation `f`.
@@ -106,7 +123,7 @@ impl<const N: usize> CorotElement<N> {
     }
 
     /// `scale` times the warped stiffness R K Rᵀ applied to the nodal vectors `p` (one per
-    /// node): (K p)_a = w R σ(Rᵀ δF) g_a with δF = Σ_b p_b g_bᵀ and σ the linear stress of
+    /// node): (K p)_a = w R σ(Rᵀ δF) g_a with δF = Σ_b p_b g_bᵀ and σ the material law of
     /// [`CorotElement::stress`] (without its rest offset), equal to Σ_b
     /// [`CorotElement::warped_blocks`] p_b.
     pub fn warped_product(
@@ -115,20 +132,8 @@ impl<const N: usize> CorotElement<N> {
         p: &[Vector3<f64>; N],
         scale: f64,
     ) -> [Vector3<f64>; N] {
-        let df = p
-            .iter()
-            .zip(&self.grads)
-            .fold(Matrix3::zeros(), |m, (p, g)| m + p * g.transpose());
-        let h = r.transpose() * df;
-        let sym = (h + h.transpose()) * 0.5;
-        let sigma = if N == 4 {
-            Matrix3::identity() * (self.lame.lambda * sym.trace()) + sym * (2.0 * self.lame.mu)
-        } else {
-            let pr = self.projector();
-            let eps = pr * sym * pr;
-            pr * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
-        };
-        let rs = r * sigma * (self.measure * scale);
+        let df = self.gradient(p);
+        let rs = r * self.linear_stress(&(r.transpose() * df)) * (self.measure * scale);
         self.grads.map(|g| rs * g)
     }
 

@@ -28,6 +28,29 @@ pub struct StepOperator {
     free: Vec<f64>,
 }
 
+/// Adds `product(element, p restricted to its nodes)` of every element to `y` at the
+/// element's nodes (`p` and `y` flat, three DOFs per node).
+fn add_element_products<'e, const N: usize>(
+    elements: impl Iterator<Item = &'e CorotElement<N>>,
+    p: &[f64],
+    y: &mut [f64],
+    mut product: impl FnMut(usize, &CorotElement<N>, &[Vector3<f64>; N]) -> [Vector3<f64>; N],
+) {
+    for (k, e) in elements.enumerate() {
+        let local = e.nodes.map(|v| {
+            let i = 3 * v as usize;
+            Vector3::new(p[i], p[i + 1], p[i + 2])
+        });
+        let out = product(k, e, &local);
+        for (v, f) in e.nodes.iter().zip(&out) {
+            let i = 3 * *v as usize;
+            y[i] += f.x;
+            y[i + 1] += f.y;
+            y[i + 2] += f.z;
+        }
+    }
+}
+
 /// Adds `scale`·(K' p) of every element of one kind to `y` (free DOFs of `p` only).
 fn add_warped<const N: usize>(
     elements: &[CorotElement<N>],
@@ -36,19 +59,9 @@ fn add_warped<const N: usize>(
     p: &[f64],
     y: &mut [f64],
 ) {
-    for (e, r) in elements.iter().zip(&states.rotations) {
-        let local = e.nodes.map(|v| {
-            let i = 3 * v as usize;
-            Vector3::new(p[i], p[i + 1], p[i + 2])
-        });
-        let out = e.warped_product(r, &local, scale);
-        for (v, f) in e.nodes.iter().zip(&out) {
-            let i = 3 * *v as usize;
-            y[i] += f.x;
-            y[i + 1] += f.y;
-            y[i + 2] += f.z;
-        }
-    }
+    add_element_products(elements.iter(), p, y, |k, e, local| {
+        e.warped_product(&states.rotations[k], local, scale)
+    });
 }
 
 impl StepOperator {
@@ -136,24 +149,11 @@ impl StepOperator {
         }
         add_warped(&model.tets, &state.tets, scale, free, y);
         add_warped(&model.membranes, &state.membranes, scale, free, y);
-        for (e, t) in model.membranes.iter().zip(&self.tension) {
-            let df = e
-                .nodes
-                .iter()
-                .zip(&e.grads)
-                .fold(Matrix3::zeros(), |m, (v, g)| {
-                    let i = 3 * *v as usize;
-                    m + Vector3::new(free[i], free[i + 1], free[i + 2]) * g.transpose()
-                });
-            let k = df * t * scale;
-            for (v, g) in e.nodes.iter().zip(&e.grads) {
-                let f = k * g;
-                let i = 3 * *v as usize;
-                y[i] += f.x;
-                y[i + 1] += f.y;
-                y[i + 2] += f.z;
-            }
-        }
+        let tension = &self.tension;
+        add_element_products(model.membranes.iter(), free, y, |k, e, local| {
+            let kt = e.gradient(local) * tension[k] * scale;
+            e.grads.map(|g| kt * g)
+        });
         for (dof, (y, p)) in y.iter_mut().zip(p).enumerate() {
             if fixed.is_fixed(dof) {
                 *y = *p;
