@@ -57,7 +57,10 @@ fn box_with_membrane_lid() -> (BoxMesh, FemModel) {
             materials: &membrane,
         },
     )
+    .unwrap()
+    .with_membrane_bending(0.05)
     .unwrap();
+    assert!(model.hinge_count() > 0);
     (mesh, model)
 }
 

@@ -1,5 +1,6 @@
 //! `otoatlas simulate` end to end: the trajectory file, the JSON report, bad options.
-//! (`validate` is exercised by the library tests; its full run is a benchmark.)
+//! (`validate` is exercised by the library tests, its full run is a benchmark; here only its
+//! refusal of a bad option.)
 
 mod common;
 
@@ -36,4 +37,13 @@ fn simulate_rejects_a_bad_time_step() {
     let out = otoatlas(&["simulate", "--steps", "2", "--dt", "0", "--quiet"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("time step"));
+}
+
+#[test]
+fn validate_rejects_a_bad_eardrum_bending_thickness() {
+    let out = otoatlas(&["validate", "--eardrum-bending=-0.05", "--quiet"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // exit 1 is kept for a failed gate
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("bending thickness"), "{stderr}");
 }

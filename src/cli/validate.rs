@@ -33,6 +33,11 @@ pub struct ValidateArgs {
     /// Where the sound drives the ear.
     #[arg(long, value_enum, default_value_t = Drive::Eardrum)]
     pub drive: Drive,
+    /// What-if: give the eardrum membrane a bending stiffness, with the flexural rigidity of
+    /// its material at this thickness (mm); the atlas's own eardrum has none
+    /// (docs/mechanics.md, "Eardrum bending").
+    #[arg(long, value_name = "MM", value_parser = positive_mm)]
+    pub eardrum_bending: Option<f64>,
     /// Write tf_magnitude.svg, tf_phase.svg and udsp.svg into this folder.
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
@@ -45,6 +50,7 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
     let atlas = load_atlas(args.atlas.as_deref(), None)?;
     let mut options = ValidationOptions::default();
     options.tfa.drive = args.drive;
+    options.eardrum_bending_mm = args.eardrum_bending;
     let validation = match &args.reference {
         None => validate_atlas(&atlas, &options)?,
         Some(r) => {
@@ -131,4 +137,14 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
         "reference": validation.reference,
     });
     Ok(Report { text, json })
+}
+
+/// A thickness (mm): finite and > 0, refused at the command line otherwise.
+fn positive_mm(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!(
+            "bending thickness {text:?}: expected a number of mm > 0"
+        )),
+    }
 }

@@ -26,6 +26,7 @@ pub struct SparsePattern {
     symbolic: SymbolicSparseColMat<usize>,
     tet_ranks: Vec<u32>,
     membrane_ranks: Vec<u32>,
+    hinge_ranks: Vec<u32>,
 }
 
 /// Local node pairs a < b of an N-node element, in a fixed order.
@@ -50,6 +51,12 @@ impl SparsePattern {
         let mut edges = Vec::new();
         push_edges(&model.tets, &mut edges);
         push_edges(&model.membranes, &mut edges);
+        for h in &model.hinges {
+            for (a, b) in pairs::<4>() {
+                let (p, q) = (h.nodes[a], h.nodes[b]);
+                edges.push((p.min(q), p.max(q)));
+            }
+        }
         edges.sort_unstable();
         edges.dedup();
         // Neighbours A > B of node B are edges[first[B]..first[B+1]] (sorted by A).
@@ -94,10 +101,17 @@ impl SparsePattern {
                 .iter()
                 .flat_map(|e| pairs::<3>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
         );
+        let hinge_ranks = ranks(
+            &mut model
+                .hinges
+                .iter()
+                .flat_map(|h| pairs::<4>().map(move |(a, b)| (h.nodes[a], h.nodes[b]))),
+        );
         SparsePattern {
             symbolic,
             tet_ranks,
             membrane_ranks,
+            hinge_ranks,
         }
     }
 
@@ -156,6 +170,11 @@ impl SparsePattern {
                 self.membrane_ranks.len(),
                 3 * model.membranes.len(),
             ),
+            (
+                "hinge rank table",
+                self.hinge_ranks.len(),
+                6 * model.hinges.len(),
+            ),
         ] {
             if expected != found {
                 return Err(FemError::LengthMismatch {
@@ -181,6 +200,26 @@ impl SparsePattern {
             scale,
             &mut sink,
         );
+        for ((h, grads), ranks) in model
+            .hinges
+            .iter()
+            .zip(&state.hinges.gradients)
+            .zip(self.hinge_ranks.chunks_exact(6))
+        {
+            let k = h.stiffness * scale;
+            for (a, g) in grads.iter().enumerate() {
+                sink.add_diagonal(h.nodes[a] as usize, &(g * g.transpose() * k));
+            }
+            for ((a, b), rank) in pairs::<4>().zip(ranks) {
+                let (p, q) = (h.nodes[a] as usize, h.nodes[b] as usize);
+                let (hi, lo, gh, gl) = if p > q {
+                    (p, q, grads[a], grads[b])
+                } else {
+                    (q, p, grads[b], grads[a])
+                };
+                sink.add_off_diagonal(hi, lo, *rank as usize, &(gh * gl.transpose() * k));
+            }
+        }
         if let Some(diag) = node_diagonal {
             for (v, &d) in diag.iter().enumerate() {
                 for i in 0..3 {

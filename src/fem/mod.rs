@@ -11,6 +11,7 @@
 //! This module depends on no other otoatlas module.
 
 mod assembly;
+mod bending;
 mod cholesky;
 mod dynamics;
 mod element;

@@ -7,6 +7,7 @@
 
 use nalgebra::Point3;
 
+use super::bending::{BendingHinge, hinges};
 use super::element::CorotElement;
 use super::error::FemError;
 use super::material::{MembraneMaterial, TetMaterial};
@@ -46,6 +47,7 @@ pub struct FemModel {
     rest: Vec<Point3<f64>>,
     pub(crate) tets: Vec<TetElement>,
     pub(crate) membranes: Vec<MembraneElement>,
+    pub(crate) hinges: Vec<BendingHinge>,
     masses: Vec<f64>,
 }
 
@@ -144,8 +146,37 @@ impl FemModel {
             rest: rest.to_vec(),
             tets: tet_elems,
             membranes: tri_elems,
+            hinges: Vec::new(),
             masses,
         })
+    }
+
+    /// Gives the membranes a bending stiffness: one discrete-shell hinge per interior edge
+    /// (`bending` module), with the flexural rigidity D = E h_b³/(12(1 − ν²)) of each
+    /// triangle's material at the bending thickness `bending_thickness_mm` (mm), averaged over
+    /// the hinge's two triangles. Without it a membrane has no bending stiffness at all.
+    pub fn with_membrane_bending(mut self, bending_thickness_mm: f64) -> Result<Self, FemError> {
+        if !(bending_thickness_mm.is_finite() && bending_thickness_mm > 0.0) {
+            return Err(FemError::InvalidParameter {
+                what: "membrane bending thickness (mm)",
+                value: bending_thickness_mm,
+                expected: "finite and > 0",
+            });
+        }
+        let cube = bending_thickness_mm.powi(3);
+        let membranes = &self.membranes;
+        // plane-stress λ* + 2μ = E/(1 − ν²)
+        self.hinges = hinges(
+            membranes,
+            |t| (membranes[t].lame.lambda + 2.0 * membranes[t].lame.mu) * cube / 12.0,
+            &self.rest,
+        );
+        Ok(self)
+    }
+
+    /// Number of bending hinges (zero unless `with_membrane_bending`).
+    pub fn hinge_count(&self) -> usize {
+        self.hinges.len()
     }
 
     /// Number of nodes.

@@ -154,6 +154,20 @@ impl StepOperator {
             let kt = e.gradient(local) * tension[k] * scale;
             e.grads.map(|g| kt * g)
         });
+        for (h, grads) in model.hinges.iter().zip(&state.hinges.gradients) {
+            let mut along = 0.0;
+            for (v, g) in h.nodes.iter().zip(grads) {
+                let i = 3 * *v as usize;
+                along += g.dot(&Vector3::new(free[i], free[i + 1], free[i + 2]));
+            }
+            let k = h.stiffness * scale * along;
+            for (v, g) in h.nodes.iter().zip(grads) {
+                let i = 3 * *v as usize;
+                y[i] += k * g.x;
+                y[i + 1] += k * g.y;
+                y[i + 2] += k * g.z;
+            }
+        }
         for (dof, (y, p)) in y.iter_mut().zip(p).enumerate() {
             if fixed.is_fixed(dof) {
                 *y = *p;

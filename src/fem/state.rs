@@ -7,6 +7,7 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
+use super::bending::{BendingHinge, HingeVectors};
 use super::element::CorotElement;
 use super::error::{ElementId, FemError};
 use super::membrane::membrane_rotation;
@@ -21,7 +22,44 @@ const PAR_CHUNK: usize = 512;
 pub struct CorotationalState {
     pub(crate) tets: ElementStates<4>,
     pub(crate) membranes: ElementStates<3>,
+    /// Angle gradient and forces of every bending hinge.
+    pub(crate) hinges: HingeStates,
     failed: Vec<ElementId>,
+}
+
+#[derive(Debug, Clone)]
+pub(crate) struct HingeStates {
+    pub gradients: Vec<HingeVectors>,
+    forces: Vec<HingeVectors>,
+}
+
+impl HingeStates {
+    fn new(count: usize) -> Self {
+        HingeStates {
+            gradients: vec![[Vector3::zeros(); 4]; count],
+            forces: vec![[Vector3::zeros(); 4]; count],
+        }
+    }
+
+    /// A collapsed triangle gives no force (the membrane state reports it).
+    fn update(&mut self, hinges: &[BendingHinge], x: &[Point3<f64>]) {
+        (&mut self.gradients, &mut self.forces, hinges)
+            .into_par_iter()
+            .with_min_len(PAR_CHUNK)
+            .for_each(|(g, f, h)| {
+                (*f, *g) = h
+                    .forces(x)
+                    .unwrap_or(([Vector3::zeros(); 4], [Vector3::zeros(); 4]));
+            });
+    }
+
+    fn gather(&self, hinges: &[BendingHinge], out: &mut [Vector3<f64>]) {
+        for (h, f) in hinges.iter().zip(&self.forces) {
+            for (node, fa) in h.nodes.iter().zip(f) {
+                out[*node as usize] += fa;
+            }
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -78,6 +116,7 @@ impl CorotationalState {
         CorotationalState {
             tets: ElementStates::new(model.tets.len()),
             membranes: ElementStates::new(model.membranes.len()),
+            hinges: HingeStates::new(model.hinges.len()),
             failed: Vec::new(),
         }
     }
@@ -89,6 +128,7 @@ impl CorotationalState {
         self.tets.update(&model.tets, x, |_, f| tet_rotation(f));
         self.membranes
             .update(&model.membranes, x, |e, f| membrane_rotation(e, x, f));
+        self.hinges.update(&model.hinges, x);
         self.failed.clear();
         let tets = self.tets.admissible.iter().enumerate();
         self.failed
@@ -122,6 +162,7 @@ impl CorotationalState {
         }
         self.tets.gather(&model.tets, out);
         self.membranes.gather(&model.membranes, out);
+        self.hinges.gather(&model.hinges, out);
         Ok(())
     }
 
@@ -137,6 +178,11 @@ impl CorotationalState {
                 "state membrane triangles",
                 model.membranes.len(),
                 self.membranes.rotations.len(),
+            ),
+            (
+                "state bending hinges",
+                model.hinges.len(),
+                self.hinges.gradients.len(),
             ),
         ] {
             if expected != found {

@@ -236,3 +236,17 @@ impl MechanicalSystem {
         })
     }
 }
+
+impl MechanicalSystem {
+    /// The same system with a bending stiffness in the eardrum: discrete-shell hinges on its
+    /// membrane with the flexural rigidity of each region's material at `thickness_mm`
+    /// (`FemModel::with_membrane_bending`). The atlas's eardrum is a bending-free membrane;
+    /// this is the what-if of docs/mechanics.md ("Eardrum bending").
+    pub fn with_eardrum_bending(mut self, thickness_mm: f64) -> Result<Self, MechanicsError> {
+        self.model = self
+            .model
+            .with_membrane_bending(thickness_mm)
+            .map_err(MechanicsError::solve("eardrum bending"))?;
+        Ok(self)
+    }
+}

@@ -19,6 +19,10 @@ pub struct ValidationOptions {
     /// The static-pressure curve; `None` skips it (an empty curve, no UDSP gates for a
     /// package).
     pub udsp: Option<UdspOptions>,
+    /// A what-if for the eardrum model: give its membrane a bending stiffness of this
+    /// thickness (mm; `MechanicalSystem::with_eardrum_bending`). `None`, the atlas as it is
+    /// (a bending-free membrane), is what `run` and `batch` use.
+    pub eardrum_bending_mm: Option<f64>,
 }
 
 impl Default for ValidationOptions {
@@ -27,6 +31,7 @@ impl Default for ValidationOptions {
         ValidationOptions {
             tfa: TfaOptions::default(),
             udsp: Some(UdspOptions::default()),
+            eardrum_bending_mm: None,
         }
     }
 }
@@ -47,7 +52,10 @@ pub fn mechanics(
     nodes: &[Point3<f64>],
     options: &ValidationOptions,
 ) -> Result<Mechanics, MechanicsError> {
-    let system = MechanicalSystem::new(atlas, nodes)?;
+    let mut system = MechanicalSystem::new(atlas, nodes)?;
+    if let Some(h) = options.eardrum_bending_mm {
+        system = system.with_eardrum_bending(h)?;
+    }
     let t = std::time::Instant::now();
     let transfer_function = transfer_function(&system, &options.tfa)?;
     let tfa_seconds = t.elapsed().as_secs_f64();
