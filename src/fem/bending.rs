@@ -85,12 +85,12 @@ pub(crate) fn hinges(
             };
             let nodes = [p, q, *a, *b];
             let (rest_angle, _) = angle_and_gradient(&nodes, rest)?;
-            let area = |t: usize| 0.5 / triangles[t].grads[1].cross(&triangles[t].grads[2]).norm();
             let len2 = (rest[q as usize] - rest[p as usize]).norm_squared();
             let d = 0.5 * (rigidity(*t1) + rigidity(*t2));
             Some(BendingHinge {
                 nodes,
-                stiffness: d * len2 / (area(*t1) + area(*t2)),
+                stiffness: d * len2
+                    / (triangles[*t1].measure_area() + triangles[*t2].measure_area()),
                 rest_angle,
             })
         })

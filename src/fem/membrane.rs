@@ -75,7 +75,7 @@ pub(crate) fn membrane_rotation(
 
 impl MembraneElement {
     /// Rest area A, from the gradients of the linear triangle: |∇N_1 × ∇N_2| = 1/(2A).
-    fn measure_area(&self) -> f64 {
+    pub(crate) fn measure_area(&self) -> f64 {
         0.5 / self.grads[1].cross(&self.grads[2]).norm()
     }
 }
