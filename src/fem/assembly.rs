@@ -34,13 +34,11 @@ fn pairs<const N: usize>() -> impl Iterator<Item = (usize, usize)> {
     (0..N).flat_map(|a| (a + 1..N).map(move |b| (a, b)))
 }
 
-fn push_edges<const N: usize>(elements: &[CorotElement<N>], edges: &mut Vec<(u32, u32)>) {
-    for e in elements {
-        for (a, b) in pairs::<N>() {
-            let (p, q) = (e.nodes[a], e.nodes[b]);
-            edges.push((p.min(q), p.max(q)));
-        }
-    }
+/// The node pairs (in `pairs` order) of every cell.
+fn node_pairs<'a, const N: usize>(
+    cells: impl Iterator<Item = &'a [u32; N]>,
+) -> impl Iterator<Item = (u32, u32)> {
+    cells.flat_map(|c| pairs::<N>().map(move |(a, b)| (c[a], c[b])))
 }
 
 impl SparsePattern {
@@ -49,14 +47,15 @@ impl SparsePattern {
     pub fn new(model: &FemModel) -> Self {
         let n = model.node_count();
         let mut edges = Vec::new();
-        push_edges(&model.tets, &mut edges);
-        push_edges(&model.membranes, &mut edges);
-        for h in &model.hinges {
-            for (a, b) in pairs::<4>() {
-                let (p, q) = (h.nodes[a], h.nodes[b]);
-                edges.push((p.min(q), p.max(q)));
-            }
-        }
+        let tet_pairs = || node_pairs(model.tets.iter().map(|e| &e.nodes));
+        let membrane_pairs = || node_pairs(model.membranes.iter().map(|e| &e.nodes));
+        let hinge_pairs = || node_pairs(model.hinges.iter().map(|h| &h.nodes));
+        edges.extend(
+            tet_pairs()
+                .chain(membrane_pairs())
+                .chain(hinge_pairs())
+                .map(|(p, q)| (p.min(q), p.max(q))),
+        );
         edges.sort_unstable();
         edges.dedup();
         // Neighbours A > B of node B are edges[first[B]..first[B+1]] (sorted by A).
@@ -86,27 +85,12 @@ impl SparsePattern {
             // The edge was inserted above, so the search always succeeds.
             list.partition_point(|&(_, a)| a < hi) as u32
         };
-        let ranks = |elements_pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Vec<u32> {
-            elements_pairs.map(|(p, q)| rank(p, q)).collect()
+        let ranks = |cell_pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Vec<u32> {
+            cell_pairs.map(|(p, q)| rank(p, q)).collect()
         };
-        let tet_ranks = ranks(
-            &mut model
-                .tets
-                .iter()
-                .flat_map(|e| pairs::<4>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
-        );
-        let membrane_ranks = ranks(
-            &mut model
-                .membranes
-                .iter()
-                .flat_map(|e| pairs::<3>().map(move |(a, b)| (e.nodes[a], e.nodes[b]))),
-        );
-        let hinge_ranks = ranks(
-            &mut model
-                .hinges
-                .iter()
-                .flat_map(|h| pairs::<4>().map(move |(a, b)| (h.nodes[a], h.nodes[b]))),
-        );
+        let tet_ranks = ranks(&mut tet_pairs());
+        let membrane_ranks = ranks(&mut membrane_pairs());
+        let hinge_ranks = ranks(&mut hinge_pairs());
         SparsePattern {
             symbolic,
             tet_ranks,

@@ -28,21 +28,21 @@ pub struct StepOperator {
     free: Vec<f64>,
 }
 
-/// Adds `product(element, p restricted to its nodes)` of every element to `y` at the
-/// element's nodes (`p` and `y` flat, three DOFs per node).
+/// Adds `product(k, p restricted to the nodes of cell k)` of every cell to `y` at the
+/// cell's nodes (`p` and `y` flat, three DOFs per node).
 fn add_element_products<'e, const N: usize>(
-    elements: impl Iterator<Item = &'e CorotElement<N>>,
+    cells: impl Iterator<Item = &'e [u32; N]>,
     p: &[f64],
     y: &mut [f64],
-    mut product: impl FnMut(usize, &CorotElement<N>, &[Vector3<f64>; N]) -> [Vector3<f64>; N],
+    mut product: impl FnMut(usize, &[Vector3<f64>; N]) -> [Vector3<f64>; N],
 ) {
-    for (k, e) in elements.enumerate() {
-        let local = e.nodes.map(|v| {
+    for (k, nodes) in cells.enumerate() {
+        let local = nodes.map(|v| {
             let i = 3 * v as usize;
             Vector3::new(p[i], p[i + 1], p[i + 2])
         });
-        let out = product(k, e, &local);
-        for (v, f) in e.nodes.iter().zip(&out) {
+        let out = product(k, &local);
+        for (v, f) in nodes.iter().zip(&out) {
             let i = 3 * *v as usize;
             y[i] += f.x;
             y[i + 1] += f.y;
@@ -59,8 +59,8 @@ fn add_warped<const N: usize>(
     p: &[f64],
     y: &mut [f64],
 ) {
-    add_element_products(elements.iter(), p, y, |k, e, local| {
-        e.warped_product(&states.rotations[k], local, scale)
+    add_element_products(elements.iter().map(|e| &e.nodes), p, y, |k, local| {
+        elements[k].warped_product(&states.rotations[k], local, scale)
     });
 }
 
@@ -150,24 +150,18 @@ impl StepOperator {
         add_warped(&model.tets, &state.tets, scale, free, y);
         add_warped(&model.membranes, &state.membranes, scale, free, y);
         let tension = &self.tension;
-        add_element_products(model.membranes.iter(), free, y, |k, e, local| {
+        let membranes = &model.membranes;
+        add_element_products(membranes.iter().map(|e| &e.nodes), free, y, |k, local| {
+            let e = &membranes[k];
             let kt = e.gradient(local) * tension[k] * scale;
             e.grads.map(|g| kt * g)
         });
-        for (h, grads) in model.hinges.iter().zip(&state.hinges.gradients) {
-            let mut along = 0.0;
-            for (v, g) in h.nodes.iter().zip(grads) {
-                let i = 3 * *v as usize;
-                along += g.dot(&Vector3::new(free[i], free[i + 1], free[i + 2]));
-            }
-            let k = h.stiffness * scale * along;
-            for (v, g) in h.nodes.iter().zip(grads) {
-                let i = 3 * *v as usize;
-                y[i] += k * g.x;
-                y[i + 1] += k * g.y;
-                y[i + 2] += k * g.z;
-            }
-        }
+        let (hinges, gradients) = (&model.hinges, &state.hinges.gradients);
+        add_element_products(hinges.iter().map(|h| &h.nodes), free, y, |k, local| {
+            let grads = &gradients[k];
+            let along: f64 = grads.iter().zip(local).map(|(g, p)| g.dot(p)).sum();
+            grads.map(|g| g * (hinges[k].stiffness * scale * along))
+        });
         for (dof, (y, p)) in y.iter_mut().zip(p).enumerate() {
             if fixed.is_fixed(dof) {
                 *y = *p;

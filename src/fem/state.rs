@@ -54,10 +54,19 @@ impl HingeStates {
     }
 
     fn gather(&self, hinges: &[BendingHinge], out: &mut [Vector3<f64>]) {
-        for (h, f) in hinges.iter().zip(&self.forces) {
-            for (node, fa) in h.nodes.iter().zip(f) {
-                out[*node as usize] += fa;
-            }
+        gather(hinges.iter().map(|h| &h.nodes), &self.forces, out);
+    }
+}
+
+/// Adds each cell's nodal forces to `out` at the cell's nodes.
+fn gather<'a, const N: usize>(
+    cells: impl Iterator<Item = &'a [u32; N]>,
+    forces: &[[Vector3<f64>; N]],
+    out: &mut [Vector3<f64>],
+) {
+    for (nodes, f) in cells.zip(forces) {
+        for (node, fa) in nodes.iter().zip(f) {
+            out[*node as usize] += fa;
         }
     }
 }
@@ -102,11 +111,7 @@ impl<const N: usize> ElementStates<N> {
     }
 
     fn gather(&self, elements: &[CorotElement<N>], out: &mut [Vector3<f64>]) {
-        for (e, f) in elements.iter().zip(&self.forces) {
-            for (node, fa) in e.nodes.iter().zip(f) {
-                out[*node as usize] += fa;
-            }
-        }
+        gather(elements.iter().map(|e| &e.nodes), &self.forces, out);
     }
 }
 
