@@ -336,6 +336,18 @@ fn bad_files_give_clear_errors() {
     );
     let e = error_of(&flat);
     assert!(e.contains("eardrum.flaccida_start_fraction"), "{e}");
+
+    // a generator bowed medially (negative) or by more than a quarter of the annulus
+    for bow in ["-0.1", "1.5"] {
+        let bad = DEFAULT_TOML.replacen(
+            "radial_sagitta_mm = 0.62",
+            &format!("radial_sagitta_mm = {bow}"),
+            1,
+        );
+        assert_ne!(bad, DEFAULT_TOML);
+        let e = error_of(&bad);
+        assert!(e.contains("eardrum.radial_sagitta_mm"), "{bow}: {e}");
+    }
 }
 
 #[test]

@@ -256,6 +256,16 @@ fn bad_atlas_files_are_rejected_naming_file_and_field() {
         ),
         ("version", Box::new(|v| v["version"] = json!(2))),
         (
+            // bending on a volumetric region (the first region is the malleus head)
+            "regions[0].bending_thickness_mm",
+            Box::new(|v| v["regions"][0]["bending_thickness_mm"] = json!(0.074)),
+        ),
+        (
+            // a non-positive flexural thickness on the last region (pars flaccida)
+            "regions[16].bending_thickness_mm",
+            Box::new(|v| v["regions"][16]["bending_thickness_mm"] = json!(-0.1)),
+        ),
+        (
             // the cells of label 15 are no longer declared
             "a label declared in regions",
             Box::new(|v| {
@@ -302,6 +312,9 @@ fn mapping_of(atlas: &Atlas, footplate_tag: u16, drop: &[u16]) -> String {
         );
         if let Some(h) = r.thickness_mm {
             s += &format!("thickness_mm = {h:?}\n");
+        }
+        if let Some(h) = r.bending_thickness_mm {
+            s += &format!("bending_thickness_mm = {h:?}\n");
         }
     }
     let membrane: Vec<String> = atlas

@@ -42,6 +42,7 @@ fn box_with_membrane_lid() -> (BoxMesh, FemModel) {
         youngs_modulus: 3.0e7,
         poisson_ratio: 0.3,
         thickness: 0.1,
+        bending_thickness: None,
         density: 1.2e-3,
     }];
     let model = FemModel::new(

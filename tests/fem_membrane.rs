@@ -16,6 +16,7 @@ const MAT: MembraneMaterial = MembraneMaterial {
     youngs_modulus: 3.0e7,
     poisson_ratio: 0.3,
     thickness: 0.075,
+    bending_thickness: None,
     density: 1.2e-3,
 };
 const SIZE: [f64; 2] = [2.0, 1.5];

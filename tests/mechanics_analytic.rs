@@ -196,6 +196,7 @@ fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() 
         youngs_modulus: 3.0e7,
         poisson_ratio: 0.3,
         thickness: 0.05,
+        bending_thickness: None,
         density: 1.2e-3,
     };
     let model = membrane_model(&sphere.vertices, &sphere.triangles, mat);

@@ -10,7 +10,7 @@ use nalgebra::Point3;
 
 use super::materials::{
     ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
-    DAMPING_SOURCE, MEMBRANE_POISSON, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
+    DAMPING_SOURCE, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
 };
 use super::membrane::{MembraneMesh, triangulate_eardrum};
 use super::model::{
@@ -120,6 +120,7 @@ fn regions() -> Vec<RegionInfo> {
             part: part_of(*r),
             material: r.name().into(),
             thickness_mm: None,
+            bending_thickness_mm: None,
         })
         .chain(
             [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida].map(|m| RegionInfo {
@@ -128,6 +129,7 @@ fn regions() -> Vec<RegionInfo> {
                 part: Part::Eardrum,
                 material: m.name().into(),
                 thickness_mm: Some(membrane_thickness_mm(m)),
+                bending_thickness_mm: Some(membrane_thickness_mm(m)),
             }),
         )
         .collect()
@@ -144,9 +146,9 @@ fn materials() -> BTreeMap<String, MaterialInfo> {
                     "Poisson's ratio: Sun, Gan et al. 2002, Biomech Model Mechanobiol 1:109",
                 ),
                 Structure::Membrane(_) => (
-                    MEMBRANE_POISSON,
-                    "Poisson's ratio and thickness: calibrated once on the atlas's transfer \
-                     function (docs/mechanics.md)",
+                    POISSON,
+                    "Poisson's ratio: Sun, Gan et al. 2002, Biomech Model Mechanobiol 1:109; \
+                     thickness: Kirikae 1960 (pars tensa), Lim 1970 (pars flaccida)",
                 ),
             };
             let (name, source) = match structure {

@@ -3,10 +3,14 @@
 //! the lateral process, and the manubrium attachment line along the superior generator.
 //!
 //! Points are addressed by (s, θ): s ∈ [0, 1] runs from the umbo (0) to the annulus (1) along
-//! a straight generator; θ is the angle on the annulus measured from the superior direction
-//! toward anterior. A straight-generator cone is the classic idealisation of the human
-//! tympanic membrane (Funnell & Laszlo 1978, J Acoust Soc Am 63:1461; Funnell, Decraemer &
-//! Khanna 1987, J Acoust Soc Am 81:1851), which ignores the slight outward radial curvature.
+//! a generator; θ is the angle on the annulus measured from the superior direction toward
+//! anterior. The generators are not straight: the human tympanic membrane is a cone whose
+//! radial fibres bow outward, toward the ear canal (Funnell & Laszlo 1978, J Acoust Soc Am
+//! 63:1461; Funnell, Decraemer & Khanna 1987, J Acoust Soc Am 81:1851; Fay, Puria & Steele
+//! 2006, PNAS 103:19743). Each generator is the straight line plus a lateral parabolic bow
+//! of height `radial_sagitta` at its middle. The curvature is what turns canal pressure into
+//! membrane tension: without it the cone is several times too stiff and its static response
+//! to ±pressure far too asymmetric (docs/mechanics.md).
 
 use nalgebra::{Point3, Vector3};
 
@@ -31,6 +35,8 @@ pub struct Eardrum {
     pub flaccida_half_angle: f64,
     /// Radial fraction from which the superior sector is pars flaccida.
     pub flaccida_start_fraction: f64,
+    /// Lateral bow of each generator at its middle (mm).
+    pub radial_sagitta: f64,
 }
 
 impl Eardrum {
@@ -76,7 +82,19 @@ impl Eardrum {
                 .positive("eardrum.semi_axis_anterior_mm", spec.semi_axis_anterior_mm)?,
             flaccida_half_angle: half.to_radians(),
             flaccida_start_fraction: start,
+            radial_sagitta: spec.radial_sagitta_mm,
         };
+        let shortest = drum.semi_axis_superior.min(drum.semi_axis_anterior);
+        if !(drum.radial_sagitta.is_finite()
+            && drum.radial_sagitta >= 0.0
+            && drum.radial_sagitta < 0.25 * shortest)
+        {
+            return Err(check.invalid(
+                "eardrum.radial_sagitta_mm",
+                drum.radial_sagitta.to_string(),
+                "a bow in mm, >= 0 and under a quarter of the shorter semi-axis",
+            ));
+        }
         let depth = drum.depth();
         if depth <= 0.0 {
             return Err(check.invalid(
@@ -95,9 +113,11 @@ impl Eardrum {
             + self.anterior * (self.semi_axis_anterior * theta.sin())
     }
 
-    /// The membrane point at radial fraction `s` along the generator at angle `theta`.
+    /// The membrane point at radial fraction `s` along the generator at angle `theta`: the
+    /// straight line from the umbo to the rim, bowed laterally by 4·sagitta·s(1 − s).
     pub fn point(&self, s: f64, theta: f64) -> Point3<f64> {
         self.apex + (self.rim(theta) - self.apex) * s
+            - self.medial_normal * (4.0 * self.radial_sagitta * s * (1.0 - s))
     }
 
     /// Which membrane region (s, θ) belongs to.

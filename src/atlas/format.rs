@@ -300,6 +300,15 @@ pub fn validate(atlas: &Atlas, path: &Path) -> Result<(), AtlasError> {
                 h.to_string(),
             );
         }
+        if let Some(h) = r.bending_thickness_mm
+            && !(h.is_finite() && h > 0.0 && r.thickness_mm.is_some())
+        {
+            return bad(
+                format!("regions[{k}].bending_thickness_mm"),
+                "a positive thickness, on a membrane region (one with thickness_mm)",
+                h.to_string(),
+            );
+        }
     }
     let kind_of =
         |label: u16, membrane: bool, what: &str, index: usize| -> Result<(), AtlasError> {

@@ -45,6 +45,9 @@ pub struct RegionMap {
     /// Membrane thickness [mm]: makes this a region of triangles.
     #[serde(default)]
     pub thickness_mm: Option<f64>,
+    /// Flexural thickness [mm] of a membrane region that bends (a shell); absent: bending-free.
+    #[serde(default)]
+    pub bending_thickness_mm: Option<f64>,
     /// Splits a tag by position: every half-space must contain the cell's centroid. Regions
     /// of the same tag are tried in file order; the first that contains a cell takes it.
     #[serde(default)]
@@ -126,6 +129,15 @@ pub(crate) fn check_mapping(m: &Mapping, path: &Path) -> Result<(), AtlasError> 
             return bad(
                 format!("region[{k}].thickness_mm"),
                 "a positive thickness",
+                h.to_string(),
+            );
+        }
+        if let Some(h) = r.bending_thickness_mm
+            && !(h.is_finite() && h > 0.0 && r.thickness_mm.is_some())
+        {
+            return bad(
+                format!("region[{k}].bending_thickness_mm"),
+                "a positive thickness, on a region with thickness_mm",
                 h.to_string(),
             );
         }
@@ -246,6 +258,7 @@ pub(crate) fn resolve_regions(
             part: r.part,
             material: key,
             thickness_mm: r.thickness_mm,
+            bending_thickness_mm: r.bending_thickness_mm,
         });
     }
     Ok((regions, materials))

@@ -50,13 +50,6 @@ pub const KG_PER_M3_TO_G_PER_MM3: f64 = 1e-6;
 /// Poisson's ratio of every volumetric structure [Su02].
 pub const POISSON: f64 = 0.3;
 
-/// Effective in-plane Poisson's ratio of the eardrum membrane: CALIBRATED once on the atlas's
-/// transfer function (mechanics-metrics §1.1 bands; docs/mechanics.md). The pars tensa is a
-/// laminate of radial and circumferential collagen fibre layers, whose in-plane coupling is
-/// weak; an isotropic ν = 0 is the effective stand-in of this straight-cone CST membrane
-/// (with ν = 0.3 the default atlas's |H_V| stays ~5 dB under the Goode band).
-pub const MEMBRANE_POISSON: f64 = 0.0;
-
 /// Table 1 of [K13] as printed: (structure, density kg/m³, Young's modulus Pa). The tensor
 /// tympani modulus is missing from the printed table and is taken from [Ko02].
 pub const TABLE1: [(Structure, f64, f64); 17] = [
@@ -135,33 +128,19 @@ pub fn material(structure: Structure) -> Material {
     }
 }
 
-/// Membrane thickness (mm), CALIBRATED once on the atlas's transfer function: the study does
-/// not give it. The literature values (pars tensa 0.074 mm [Ki60], pars flaccida 0.1 mm
-/// [Li70]) make this straight-cone membrane ~3x too stiff (|H_V| under the Goode band at
-/// 250-1000 Hz); both are scaled by the same factor 0.35, keeping their ratio. The pars
-/// tensa value, 0.026 mm, is under the ~0.04-0.12 mm measured range (Kuypers et al. 2006,
-/// Hear Res 213:120 [M]): it stands in for the compliance the cone's missing radial
-/// curvature would give (docs/mechanics.md).
+/// Eardrum thickness (mm), from the literature: pars tensa 0.074 mm [Ki60], pars flaccida
+/// 0.1 mm [Li70] (the measured pars tensa range is ~0.04-0.12 mm, Kuypers et al. 2006, Hear
+/// Res 213:120 [M]). The eardrum is a thin shell of this thickness: in-plane stiffness E·h
+/// and flexural rigidity E·h³/(12(1 − ν²)) (`bending_thickness_mm` of its atlas regions). The
+/// same value is what the phantoms render.
 pub fn membrane_thickness_mm(region: MembraneRegion) -> f64 {
-    anatomical_thickness_mm(region) * MEMBRANE_THICKNESS_FACTOR
-}
-
-/// The anatomical membrane thickness (mm): pars tensa 0.074 mm [Ki60], pars flaccida 0.1 mm
-/// [Li70]. What an image shows (the phantoms render it); the mechanical model uses
-/// [`membrane_thickness_mm`].
-pub fn anatomical_thickness_mm(region: MembraneRegion) -> f64 {
     match region {
         MembraneRegion::ParsTensa => 0.074,
         MembraneRegion::ParsFlaccida => 0.1,
     }
 }
 
-/// The calibrated factor on the literature membrane thicknesses (see
-/// [`membrane_thickness_mm`]).
-pub const MEMBRANE_THICKNESS_FACTOR: f64 = 0.35;
-
-/// Rayleigh damping C = α M + β K: starting values, to be calibrated once on the atlas's own
-/// transfer function and frozen (mechanics-metrics §1.1).
+/// Rayleigh damping C = α M + β K (frozen in the atlas file, mechanics-metrics §1.1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rayleigh {
     /// Mass-proportional coefficient α (1/s).
@@ -170,34 +149,32 @@ pub struct Rayleigh {
     pub beta_s: f64,
 }
 
-/// Rayleigh coefficients, CALIBRATED once on the atlas's transfer function: β = 5.5e-5 s
-/// (the literature uses 0.75e-4 to 1.5e-4 s [W16]; lower here because the cochlear load
-/// and α also damp), α = 2000 /s (damps the stiffness-controlled band and flattens the
-/// 250-500 Hz slope into +3…+9 dB/octave).
+/// Rayleigh coefficients from the literature: β = 1.0e-4 s, the eardrum's and stapes' value
+/// in [W16] (range 0.75e-4 to 1.5e-4 s); no mass-proportional term (α = 0): with the cochlear load, β is all
+/// the damping the atlas needs to land in the transfer-function bands.
 pub const RAYLEIGH: Rayleigh = Rayleigh {
-    alpha_per_s: 2000.0,
-    beta_s: 5.5e-5,
+    alpha_per_s: 0.0,
+    beta_s: 1.0e-4,
 };
 
-/// Cochlear input impedance Z_c (Pa·s/m³), CALIBRATED: 1.0e10, the low end of the
-/// temporal-bone range (about 1e10 to 2e10 [A01]; Merchant, Ravicz & Rosowski 1996 [M]).
+/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 [A01]; Merchant, Ravicz & Rosowski 1996 [M]).
 pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 1.0e10;
 
 /// Where the damping values come from (stored with them in the atlas file).
-pub const DAMPING_SOURCE: &str = "calibrated once on the atlas's stapes velocity transfer \
-     function (docs/mechanics.md); literature ranges: Rayleigh beta 0.75e-4 to 1.5e-4 s, Wang, \
-     Gan et al. 2016, Biomech Model Mechanobiol 15:1263, Table 2; cochlear impedance about \
-     1e10 to 2e10 Pa s/m^3, Aibara et al. 2001, Hear Res 152:100";
+pub const DAMPING_SOURCE: &str = "literature, not calibrated (docs/mechanics.md): Rayleigh \
+     beta 1.0e-4 s, the eardrum's value in Wang, Gan et al. 2016, Biomech Model \
+     Mechanobiol 15:1263, Table 2, and alpha 0; cochlear impedance 1e10 Pa s/m^3, the low end \
+     of about 1e10 to 2e10 in Aibara et al. 2001, Hear Res 152:100";
 
 /// Total stiffness of the stapedial annular ligament (N/m), shared by isotropic springs on
-/// the footplate rim nodes, CALIBRATED: 60 N/m, half the AFM value of [Kw15] (120 N/m at one
-/// point of the footplate; the piston stiffness of the whole ring is not measured there).
-pub const ANNULAR_LIGAMENT_STIFFNESS_N_PER_M: f64 = 60.0;
+/// the footplate rim nodes: 120 N/m, the AFM value of [Kw15] (measured at one point of the
+/// footplate, linear up to ~100 nm; taken here as the whole ring's stiffness).
+pub const ANNULAR_LIGAMENT_STIFFNESS_N_PER_M: f64 = 120.0;
 
 /// Where the annular ligament stiffness comes from.
-pub const ANNULAR_LIGAMENT_SOURCE: &str = "calibrated once on the atlas's transfer function \
-     (docs/mechanics.md); literature: Kwacz, Rymuza, Michalowski, Wysocki 2015, JARO 16:433 \
-     (AFM on temporal bones: linear up to ~100 nm, about 120 N/m)";
+pub const ANNULAR_LIGAMENT_SOURCE: &str = "literature, not calibrated (docs/mechanics.md): \
+     Kwacz, Rymuza, Michalowski, Wysocki 2015, JARO 16:433 (AFM on temporal bones: linear up \
+     to ~100 nm, about 120 N/m), taken as the whole ring's stiffness";
 
 /// Total cochlear dashpot on the footplate, Z_c · A² with A the footplate area in m², in the
 /// mm-g-s unit g/s (1 N·s/m = 1 kg/s = 1000 g/s; g/s × mm/s = g·mm/s² = µN). For

@@ -127,7 +127,7 @@ mod tests {
     use crate::mesh::topology::surface_topology;
 
     #[test]
-    fn the_cone_is_a_single_oriented_disc_with_the_cone_area() {
+    fn the_drum_is_a_single_oriented_disc_with_the_drums_area() {
         let anatomy = Anatomy::default_right().unwrap();
         let drum = anatomy.eardrum();
         let m = triangulate_eardrum(drum, 0.25);
@@ -150,13 +150,16 @@ mod tests {
             let [a, b, c] = t.map(|v| m.nodes[v as usize]);
             assert!((b - a).cross(&(c - a)).dot(&drum.medial_normal) < 0.0);
         }
-        // the area of an elliptic cone, by fine quadrature of its generators
-        let n = 4000;
-        let exact: f64 = (0..n)
-            .map(|k| {
-                let (t0, t1) = (TAU * k as f64 / n as f64, TAU * (k + 1) as f64 / n as f64);
-                let (a, b, c) = (drum.apex, drum.rim(t0), drum.rim(t1));
-                0.5 * (b - a).cross(&(c - a)).norm()
+        // the area of the bowed elliptic cone, by a fine (s, θ) quadrature of its surface
+        let (ns, nt) = (400, 1600);
+        let exact: f64 = (0..ns)
+            .flat_map(|i| (0..nt).map(move |k| (i, k)))
+            .map(|(i, k)| {
+                let (s0, s1) = (i as f64 / ns as f64, (i + 1) as f64 / ns as f64);
+                let (t0, t1) = (TAU * k as f64 / nt as f64, TAU * (k + 1) as f64 / nt as f64);
+                let [a, b, c, d] =
+                    [(s0, t0), (s1, t0), (s1, t1), (s0, t1)].map(|(sf, th)| drum.point(sf, th));
+                0.5 * ((b - a).cross(&(c - a)).norm() + (c - a).cross(&(d - a)).norm())
             })
             .sum();
         let area: f64 = m

@@ -61,6 +61,10 @@ pub struct RegionInfo {
     /// Membrane thickness [mm]; present exactly for regions made of triangles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thickness_mm: Option<f64>,
+    /// Flexural thickness h_b [mm] of a membrane region that is a shell: bending rigidity
+    /// E·h_b³/(12(1 − ν²)) on top of the in-plane stiffness. Absent: a bending-free membrane.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bending_thickness_mm: Option<f64>,
 }
 
 /// An isotropic linear-elastic material as its source gives it (SI units).
@@ -310,6 +314,7 @@ impl Atlas {
                         youngs_modulus: e,
                         poisson_ratio: nu,
                         thickness: h,
+                        bending_thickness: r.bending_thickness_mm,
                         density: rho,
                     });
                 }

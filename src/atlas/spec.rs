@@ -108,7 +108,8 @@ pub struct TendonsSpec {
     pub stapedius: TubeSpec,
 }
 
-/// The eardrum as a cone surface: apex at the umbo, rim on the elliptic tympanic annulus.
+/// The eardrum as a cone surface: apex at the umbo, rim on the elliptic tympanic annulus,
+/// its generators bowed toward the ear canal by `radial_sagitta_mm`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EardrumSpec {
@@ -124,6 +125,11 @@ pub struct EardrumSpec {
     /// Radial fraction (0 = umbo, 1 = annulus) above which the superior sector is pars
     /// flaccida: the lateral process of the malleus.
     pub flaccida_start_fraction: f64,
+    /// Radial curvature: how far (mm) each generator bows laterally, toward the ear canal,
+    /// at its middle (a parabolic arc from umbo to annulus). 0, the default, is the
+    /// straight-generator cone.
+    #[serde(default)]
+    pub radial_sagitta_mm: f64,
 }
 
 /// A primitive as written in the file, tagged by `kind`.

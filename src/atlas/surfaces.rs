@@ -119,6 +119,7 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
             part: *bone,
             material: bone.name().to_string(),
             thickness_mm: None,
+            bending_thickness_mm: None,
         });
     }
     let mut provenance = BTreeMap::new();

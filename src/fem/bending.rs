@@ -63,7 +63,8 @@ pub(crate) fn angle_and_gradient(
 }
 
 /// The hinges of the interior edges of `triangles` (edges shared by exactly two), with the
-/// flexural rigidity `rigidity(t)` (µN·mm) of triangle t and the rest positions `rest`.
+/// flexural rigidity `rigidity(t)` (µN·mm) of triangle t and the rest positions `rest`; an
+/// edge whose two triangles have no rigidity gets no hinge.
 pub(crate) fn hinges(
     triangles: &[MembraneElement],
     rigidity: impl Fn(usize) -> f64,
@@ -87,6 +88,9 @@ pub(crate) fn hinges(
             let (rest_angle, _) = angle_and_gradient(&nodes, rest)?;
             let len2 = (rest[q as usize] - rest[p as usize]).norm_squared();
             let d = 0.5 * (rigidity(*t1) + rigidity(*t2));
+            if d <= 0.0 {
+                return None;
+            }
             Some(BendingHinge {
                 nodes,
                 stiffness: d * len2
@@ -184,6 +188,7 @@ mod tests {
             youngs_modulus: 2.0e7,
             poisson_ratio: 0.3,
             thickness: 0.05,
+            bending_thickness: None,
             density: 1e-3,
         };
         let d = mat.youngs_modulus * 0.08f64.powi(3) / (12.0 * (1.0 - 0.09));

@@ -28,6 +28,9 @@ pub struct MembraneMaterial {
     pub poisson_ratio: f64,
     /// Thickness h in mm.
     pub thickness: f64,
+    /// Flexural thickness h_b in mm of a shell (bending rigidity E h_b³/(12(1 − ν²)));
+    /// `None`: a bending-free membrane.
+    pub bending_thickness: Option<f64>,
     /// Density ρ in g/mm³.
     pub density: f64,
 }
@@ -112,6 +115,16 @@ impl MembraneMaterial {
             self.thickness > 0.0,
             "thickness > 0 mm",
         )?;
+        if let Some(h) = self.bending_thickness {
+            check(
+                "membrane",
+                index,
+                "bending thickness",
+                h,
+                h > 0.0,
+                "bending thickness > 0 mm",
+            )?;
+        }
         check(
             "membrane",
             index,
@@ -120,6 +133,15 @@ impl MembraneMaterial {
             self.density > 0.0,
             "density > 0 g/mm^3",
         )
+    }
+
+    /// Flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm with E in Pa = µN/mm²); 0 without
+    /// a bending thickness.
+    pub fn flexural_rigidity(&self) -> f64 {
+        self.bending_thickness.map_or(0.0, |h| {
+            let nu = self.poisson_ratio;
+            self.youngs_modulus * h.powi(3) / (12.0 * (1.0 - nu * nu))
+        })
     }
 
     /// Plane-stress Lamé pair (λ* = Eν/(1−ν²), μ = E/(2(1+ν))).
@@ -171,6 +193,7 @@ mod tests {
             youngs_modulus: 3e7,
             poisson_ratio: 0.3,
             thickness: 0.0,
+            bending_thickness: None,
             density: 1e-3,
         };
         assert!(matches!(
@@ -188,6 +211,7 @@ mod tests {
             youngs_modulus: 2.0e7,
             poisson_ratio: 0.3,
             thickness: 0.1,
+            bending_thickness: None,
             density: 1e-3,
         };
         let l = m.plane_stress_lame();

@@ -97,6 +97,7 @@ mod tests {
             youngs_modulus: 2.0e7,
             poisson_ratio: 0.3,
             thickness: 0.08,
+            bending_thickness: None,
             density: 1e-3,
         };
         let tri = rest_membrane(0, [0, 1, 2], &rest, &mat).unwrap();

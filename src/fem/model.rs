@@ -142,19 +142,24 @@ impl FemModel {
             let m = membranes.materials[mi as usize].density * t.measure / 3.0;
             t.nodes.iter().for_each(|&n| masses[n as usize] += m);
         }
+        let rigidity = |t: usize| {
+            membranes.materials[membranes.material_index[t] as usize].flexural_rigidity()
+        };
+        let hinges = hinges(&tri_elems, rigidity, rest);
         Ok(FemModel {
             rest: rest.to_vec(),
             tets: tet_elems,
             membranes: tri_elems,
-            hinges: Vec::new(),
+            hinges,
             masses,
         })
     }
 
-    /// Gives the membranes a bending stiffness: one discrete-shell hinge per interior edge
-    /// (`bending` module), with the flexural rigidity D = E h_b³/(12(1 − ν²)) of each
-    /// triangle's material at the bending thickness `bending_thickness_mm` (mm), averaged over
-    /// the hinge's two triangles. Without it a membrane has no bending stiffness at all.
+    /// The same model with every membrane bending at one flexural thickness: one
+    /// discrete-shell hinge per interior edge (`bending` module), with the flexural rigidity
+    /// D = E h_b³/(12(1 − ν²)) of each triangle's material at `bending_thickness_mm` (mm),
+    /// averaged over the hinge's two triangles. It replaces the hinges the materials' own
+    /// `bending_thickness` gave (a what-if; see `MembraneMaterial`).
     pub fn with_membrane_bending(mut self, bending_thickness_mm: f64) -> Result<Self, FemError> {
         if !(bending_thickness_mm.is_finite() && bending_thickness_mm > 0.0) {
             return Err(FemError::InvalidParameter {
@@ -174,7 +179,7 @@ impl FemModel {
         Ok(self)
     }
 
-    /// Number of bending hinges (zero unless `with_membrane_bending`).
+    /// Number of bending hinges (interior membrane edges between bending triangles).
     pub fn hinge_count(&self) -> usize {
         self.hinges.len()
     }

@@ -24,7 +24,7 @@ use super::drum::{DrumSlopes, drum_position, sheet_fraction};
 use super::imaging::{FieldSample, TissueField};
 use super::patient::{ChainTissue, PatientAnatomy};
 use super::variability::DETAILED_LIPSCHITZ;
-use crate::atlas::materials::anatomical_thickness_mm;
+use crate::atlas::materials::membrane_thickness_mm;
 use crate::atlas::{Anatomy, MembraneRegion};
 
 /// Width of the stapedial annular ligament between the footplate's rim and the oval window's
@@ -155,10 +155,10 @@ impl EarScene<'_> {
         let drum = drum_position(d, p);
         clearance = clearance.min((drum.s - 1.0).abs() / self.slopes.s);
         if drum.s <= 1.0 {
-            let thickness = anatomical_thickness_mm(d.region(drum.s, drum.theta));
+            let thickness = membrane_thickness_mm(d.region(drum.s, drum.theta));
             // the sheet's faces, of either part's thickness (the parts meet along a line)
             for t in [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida] {
-                let face = (drum.height.abs() - 0.5 * anatomical_thickness_mm(t)).abs();
+                let face = (drum.height.abs() - 0.5 * membrane_thickness_mm(t)).abs();
                 clearance = clearance.min(face / self.slopes.height);
             }
             let sheet = sheet_fraction(drum.height, thickness, footprint_mm);
