@@ -35,7 +35,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub umbo_force: f64,
     /// Refresh the CG preconditioner (a Cholesky factor of the step matrix) every N steps;
-    /// it is also refreshed whenever CG needs more than 4 iterations.
+    /// it is also refreshed whenever CG needs more than 2 iterations.
     #[arg(long, value_name = "N", default_value_t = 1000)]
     pub refactor_every: usize,
     /// Trajectory file: .csv (time_s, umbo_medial_mm, x, y, z) or .json.

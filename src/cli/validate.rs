@@ -33,9 +33,9 @@ pub struct ValidateArgs {
     /// Where the sound drives the ear.
     #[arg(long, value_enum, default_value_t = Drive::Eardrum)]
     pub drive: Drive,
-    /// What-if: give the eardrum membrane a bending stiffness, with the flexural rigidity of
-    /// its material at this thickness (mm); the atlas's own eardrum has none
-    /// (docs/mechanics.md, "Eardrum bending").
+    /// What-if: bend the whole eardrum at this flexural thickness (mm) instead of the atlas's
+    /// own (its regions' bending_thickness_mm: pars tensa 0.074, pars flaccida 0.1 in the
+    /// default atlas; docs/mechanics.md, "The eardrum: a curved shell").
     #[arg(long, value_name = "MM", value_parser = positive_mm)]
     pub eardrum_bending: Option<f64>,
     /// Write tf_magnitude.svg, tf_phase.svg and udsp.svg into this folder.

@@ -1,7 +1,8 @@
 //! The package's SOFA scene (`scene.scn`, SOFA v23.06 and later): it loads `mesh.msh` beside
-//! it with MeshGmshLoader and simulates the registered atlas exactly as otoatlas's own
-//! mechanics does (`mechanics::MechanicalSystem`: the same lumped masses, fixed nodes,
-//! annular-ligament springs, cochlear dashpots and Rayleigh damping).
+//! it with MeshGmshLoader and simulates the registered atlas as otoatlas's own mechanics does
+//! (`mechanics::MechanicalSystem`: the same lumped masses, fixed nodes, annular-ligament
+//! springs, cochlear dashpots and Rayleigh damping), except the eardrum's bending, which
+//! SOFA's core cannot represent on a curved rest shape (the scene says so in a comment).
 //!
 //! Facts from the research note mechanics-metrics §2 (checked in sofa-framework/sofa
 //! v23.06–v24.12): per-element `youngModulus` vectors are written full length in topology order
@@ -228,6 +229,19 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
              \x20           <TriangleSetTopologyContainer name=\"drum\" \
              position=\"@../../loader.position\" triangles=\"@../../loader.triangles\"/>\n",
         );
+        if atlas
+            .regions
+            .iter()
+            .any(|r| r.bending_thickness_mm.is_some())
+        {
+            s.push_str(
+                "            <!-- NOT IN THIS SCENE: the atlas's eardrum also bends (a shell, \
+                 bending_thickness_mm in atlas.json). SOFA's core has no bending term with a \
+                 curved rest shape (FastTriangularBendingSprings rests flat), so this eardrum \
+                 is bending-free and softer than otoatlas's at low frequency (docs/mechanics.md, \
+                 SOFA scene) -->\n",
+            );
+        }
         let _ = writeln!(
             s,
             "            <!-- E x thickness per triangle (Pa mm): the triangle has no thickness of \

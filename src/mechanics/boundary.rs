@@ -238,10 +238,10 @@ impl MechanicalSystem {
 }
 
 impl MechanicalSystem {
-    /// The same system with a bending stiffness in the eardrum: discrete-shell hinges on its
-    /// membrane with the flexural rigidity of each region's material at `thickness_mm`
-    /// (`FemModel::with_membrane_bending`). The atlas's eardrum is a bending-free membrane;
-    /// this is the what-if of docs/mechanics.md ("Eardrum bending").
+    /// The same system with the whole eardrum bending at one flexural thickness: discrete-
+    /// shell hinges on its membrane with the flexural rigidity of each region's material at
+    /// `thickness_mm` (`FemModel::with_membrane_bending`), in place of the atlas's own
+    /// `bending_thickness_mm`; the what-if of docs/mechanics.md.
     pub fn with_eardrum_bending(mut self, thickness_mm: f64) -> Result<Self, MechanicsError> {
         self.model = self
             .model

@@ -12,7 +12,7 @@
 //! et al. 2010, SOFA's PCGLinearSolver + AsyncSparseLDLSolver; the symbolic analysis is done
 //! once, the matrix is assembled only to be factorised). So every step solves the current
 //! system to the CG tolerance (relative residual 1e-6); the stale factor only costs
-//! iterations, and when it is too stale (more than 4 iterations) it is refreshed at once and
+//! iterations, and when it is too stale (more than 2 iterations) it is refreshed at once and
 //! the step solved with it, as it is every `refactor_every` steps. (The matrix cannot simply
 //! be frozen at the rest shape: the eardrum is a membrane whose out-of-plane stiffness comes
 //! from its tension under load, absent at rest, and such an iteration diverges.) The ear-canal
@@ -32,12 +32,12 @@ use crate::fem::{
 const CG_TOLERANCE: f64 = 1e-6;
 /// Conjugate-gradient iterations allowed with a stale preconditioner before it is refreshed
 /// (the step is then solved with the fresh factor). A refresh (assembly and numeric
-/// factorisation) costs about as much as 15 iterations, and a factor that needs more than 4
+/// factorisation) costs about as much as 15 iterations, and a factor that needs more than 2
 /// iterations is stale enough that its replacement brings the following steps back to one
-/// iteration: measured on the default atlas (300 steps under 1 kPa), a limit of 4 gives 1.3
-/// iterations and 21 refreshes, a limit of 25 gives 3.4 iterations and 12 refreshes and
-/// costs 40 % more time.
-const CG_MAX_ITERATIONS: usize = 4;
+/// iteration: measured on the default atlas (300 steps under 1 kPa, the eardrum a bending
+/// shell), a limit of 2 gives 1.1 iterations and 16 refreshes, a limit of 4 gives 2.2
+/// iterations and 9 refreshes and costs 20-40 % more time (BENCHMARKS.md).
+const CG_MAX_ITERATIONS: usize = 2;
 
 /// What to simulate.
 #[derive(Debug, Clone, Copy, PartialEq)]

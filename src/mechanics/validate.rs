@@ -19,9 +19,9 @@ pub struct ValidationOptions {
     /// The static-pressure curve; `None` skips it (an empty curve, no UDSP gates for a
     /// package).
     pub udsp: Option<UdspOptions>,
-    /// A what-if for the eardrum model: give its membrane a bending stiffness of this
-    /// thickness (mm; `MechanicalSystem::with_eardrum_bending`). `None`, the atlas as it is
-    /// (a bending-free membrane), is what `run` and `batch` use.
+    /// A what-if for the eardrum model: bend its whole membrane at this flexural thickness
+    /// (mm; `MechanicalSystem::with_eardrum_bending`) instead of the atlas's own. `None`, the
+    /// atlas as it is, is what `run` and `batch` use.
     pub eardrum_bending_mm: Option<f64>,
 }
 
