@@ -123,13 +123,17 @@ fn regions() -> Vec<RegionInfo> {
             bending_thickness_mm: None,
         })
         .chain(
-            [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida].map(|m| RegionInfo {
-                label: m.id(),
-                name: m.name().into(),
-                part: Part::Eardrum,
-                material: m.name().into(),
-                thickness_mm: Some(membrane_thickness_mm(m)),
-                bending_thickness_mm: Some(membrane_thickness_mm(m)),
+            [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida].map(|m| {
+                // a shell: the same thickness stretches and bends
+                let h = Some(membrane_thickness_mm(m));
+                RegionInfo {
+                    label: m.id(),
+                    name: m.name().into(),
+                    part: Part::Eardrum,
+                    material: m.name().into(),
+                    thickness_mm: h,
+                    bending_thickness_mm: h,
+                }
             }),
         )
         .collect()

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::model::{
     Atlas, Damping, MaterialInfo, MeshPoint, Part, RegionInfo, Supports, TiedLandmarks,
+    bad_bending_thickness,
 };
 use crate::ear::{LandmarkName, Side};
 use crate::io_util::write_atomic;
@@ -300,9 +301,7 @@ pub fn validate(atlas: &Atlas, path: &Path) -> Result<(), AtlasError> {
                 h.to_string(),
             );
         }
-        if let Some(h) = r.bending_thickness_mm
-            && !(h.is_finite() && h > 0.0 && r.thickness_mm.is_some())
-        {
+        if let Some(h) = bad_bending_thickness(r.bending_thickness_mm, r.thickness_mm) {
             return bad(
                 format!("regions[{k}].bending_thickness_mm"),
                 "a positive thickness, on a membrane region (one with thickness_mm)",

@@ -10,7 +10,7 @@ use nalgebra::{Point3, Vector3};
 use serde::Deserialize;
 
 use super::format::{AtlasError, default_atlas};
-use super::model::{MaterialInfo, Part, RegionInfo};
+use super::model::{MaterialInfo, Part, RegionInfo, bad_bending_thickness};
 
 /// The mapping file: what each cell tag of the mesh becomes.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -132,9 +132,7 @@ pub(crate) fn check_mapping(m: &Mapping, path: &Path) -> Result<(), AtlasError> 
                 h.to_string(),
             );
         }
-        if let Some(h) = r.bending_thickness_mm
-            && !(h.is_finite() && h > 0.0 && r.thickness_mm.is_some())
-        {
+        if let Some(h) = bad_bending_thickness(r.bending_thickness_mm, r.thickness_mm) {
             return bad(
                 format!("region[{k}].bending_thickness_mm"),
                 "a positive thickness, on a region with thickness_mm",

@@ -67,6 +67,13 @@ pub struct RegionInfo {
     pub bending_thickness_mm: Option<f64>,
 }
 
+/// The flexural thickness `bending` of a region with membrane thickness `thickness`, when it
+/// is not acceptable: present but not finite and > 0, or on a region without a thickness
+/// (a volume cannot be a shell).
+pub(crate) fn bad_bending_thickness(bending: Option<f64>, thickness: Option<f64>) -> Option<f64> {
+    bending.filter(|h| !(h.is_finite() && *h > 0.0 && thickness.is_some()))
+}
+
 /// An isotropic linear-elastic material as its source gives it (SI units).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

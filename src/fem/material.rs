@@ -42,6 +42,14 @@ pub(crate) struct Lame {
     pub mu: f64,
 }
 
+impl Lame {
+    /// Flexural rigidity D = (λ + 2μ) h³/12 of a plate of thickness `h` (mm) of this
+    /// plane-stress pair, i.e. E h³/(12(1 − ν²)) (µN·mm).
+    pub(crate) fn flexural_rigidity(&self, h: f64) -> f64 {
+        (self.lambda + 2.0 * self.mu) * h.powi(3) / 12.0
+    }
+}
+
 fn check(
     kind: &'static str,
     index: usize,
@@ -138,10 +146,8 @@ impl MembraneMaterial {
     /// Flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm with E in Pa = µN/mm²); 0 without
     /// a bending thickness.
     pub fn flexural_rigidity(&self) -> f64 {
-        self.bending_thickness.map_or(0.0, |h| {
-            let nu = self.poisson_ratio;
-            self.youngs_modulus * h.powi(3) / (12.0 * (1.0 - nu * nu))
-        })
+        self.bending_thickness
+            .map_or(0.0, |h| self.plane_stress_lame().flexural_rigidity(h))
     }
 
     /// Plane-stress Lamé pair (λ* = Eν/(1−ν²), μ = E/(2(1+ν))).

@@ -168,12 +168,10 @@ impl FemModel {
                 expected: "finite and > 0",
             });
         }
-        let cube = bending_thickness_mm.powi(3);
         let membranes = &self.membranes;
-        // plane-stress λ* + 2μ = E/(1 − ν²)
         self.hinges = hinges(
             membranes,
-            |t| (membranes[t].lame.lambda + 2.0 * membranes[t].lame.mu) * cube / 12.0,
+            |t| membranes[t].lame.flexural_rigidity(bending_thickness_mm),
             &self.rest,
         );
         Ok(self)
