@@ -39,8 +39,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t_tf = t1.elapsed().as_secs_f64();
     for p in &tf.points {
         println!(
-            "TF {:7.0} Hz  {:9.3} um/s/Pa  {:7.1} deg",
-            p.frequency_hz, p.magnitude_um_s_per_pa, p.phase_deg
+            "TF {:7.0} Hz  {:9.3} um/s/Pa  {:7.1} deg  (umbo {:9.3} um/s/Pa)",
+            p.frequency_hz, p.magnitude_um_s_per_pa, p.phase_deg, p.umbo_um_s_per_pa
         );
     }
     println!(

@@ -1,6 +1,6 @@
 //! `cargo run --release --example write_reference_mechanics`: writes
-//! `assets/reference_mechanics.json`, the embedded default atlas's transfer function that
-//! `run` validates packages against (rerun it whenever the default atlas changes; the test
+//! `assets/reference_mechanics.json`, the embedded default atlas's transfer function and
+//! gate-pressure static curve that `run` validates packages against (rerun it whenever the default atlas changes; the test
 //! `tests/mechanics_packages.rs` fails while the file is stale).
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

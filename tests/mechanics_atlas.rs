@@ -18,7 +18,7 @@ fn the_atlas_transfer_function_passes_the_literature_gates() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
     let tf = transfer_function(&system, &TfaOptions::default()).unwrap();
-    let verdict = literature_verdict(&tf, &StaticCurve { points: vec![] });
+    let verdict = literature_verdict(&tf, &StaticCurve::default());
     for g in &verdict.gates {
         println!(
             "{} {} = {:.3} in [{}, {}]",

@@ -122,7 +122,7 @@ fn validation_can_be_switched_off() {
 }
 
 #[test]
-fn the_shipped_reference_is_the_default_atlas_transfer_function() {
+fn the_shipped_reference_is_the_default_atlas_mechanics() {
     use otoatlas::pipeline::mechanics::{compute_embedded_reference, embedded_reference};
     let shipped = embedded_reference().expect("assets/reference_mechanics.json parses");
     let fresh = compute_embedded_reference().unwrap();
@@ -137,5 +137,17 @@ fn the_shipped_reference_is_the_default_atlas_transfer_function() {
         let rel = (p.magnitude_um_s_per_pa / q.magnitude_um_s_per_pa - 1.0).abs();
         assert!(rel < 1e-6, "{stale}: {} Hz off by {rel:e}", p.frequency_hz);
         assert!((p.phase_deg - q.phase_deg).abs() < 1e-4, "{stale}");
+    }
+    let (a, b) = (&shipped.static_pressure, &fresh.static_pressure);
+    assert_eq!(a.points.len(), b.points.len(), "{stale}");
+    assert!(a.failure.is_none() && b.failure.is_none());
+    for (p, q) in a.points.iter().zip(&b.points) {
+        assert_eq!(p.pressure_pa, q.pressure_pa, "{stale}");
+        // Newton stops within 1e-5 mm of equilibrium; CPUs may stop one iteration apart
+        assert!(
+            (p.umbo_mm - q.umbo_mm).abs() < 1e-4,
+            "{stale}: {} Pa",
+            p.pressure_pa
+        );
     }
 }

@@ -110,6 +110,9 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
     if let Some(a) = m.udsp.asymmetry() {
         let _ = writeln!(text, "  asymmetry |u(-4 kPa)|/|u(+4 kPa)| = {a:.3}");
     }
+    if let Some(why) = &m.udsp.failure {
+        let _ = writeln!(text, "  stopped short: {why}");
+    }
     let _ = writeln!(
         text,
         "timing: TFA {:.2} s, UDSP {:.2} s",

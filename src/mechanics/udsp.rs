@@ -8,9 +8,13 @@
 //! iterate); each branch (p > 0, p < 0) starts at rest and is loaded incrementally (steps of
 //! at most `max_step_pa`), each increment solved to equilibrium by Newton iterations on the
 //! corotational model (warped tangent, inversion guard; `StaticSolver::solve_with_pressure`).
+//! An increment that does not reach equilibrium ends its branch: the curve keeps the points
+//! before it and says where and why it stopped (`StaticCurve::failure`), and the gates on the
+//! missing points fail. A registered model that cannot carry the load is a finding of the
+//! check, not an error of the run.
 
 use rayon::join;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::boundary::MechanicalSystem;
 use super::error::MechanicsError;
@@ -31,9 +35,8 @@ pub struct UdspOptions {
     pub tolerance_mm: f64,
     /// Newton iteration limit per increment.
     pub max_iterations: usize,
-    /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): the
-    /// eardrum is a membrane without bending stiffness, whose out-of-plane tangent is nearly
-    /// singular where it is not yet tensioned.
+    /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): a thin
+    /// eardrum's out-of-plane tangent is nearly singular where it is not yet tensioned.
     pub tangent_shift: f64,
 }
 
@@ -51,7 +54,7 @@ impl Default for UdspOptions {
 }
 
 /// One point of the curve.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct UdspPoint {
     pub pressure_pa: f64,
     /// Umbo displacement along the medial axis (mm, positive = medial).
@@ -61,9 +64,12 @@ pub struct UdspPoint {
 }
 
 /// The umbo displacement curve, sorted by pressure.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct StaticCurve {
     pub points: Vec<UdspPoint>,
+    /// Where and why loading stopped short (an increment without equilibrium), if it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
 }
 
 impl StaticCurve {
@@ -124,23 +130,29 @@ pub fn static_pressure_curve(
         solve_branch(system, &ps, options)
     };
     let (neg, pos) = join(|| branch(-1.0), || branch(1.0));
-    let mut points = neg?;
+    let (mut points, neg_failure) = neg?;
+    let (pos_points, pos_failure) = pos?;
     points.push(UdspPoint {
         pressure_pa: 0.0,
         umbo_mm: 0.0,
         iterations: 0,
     });
-    points.extend(pos?);
+    points.extend(pos_points);
     points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
-    Ok(StaticCurve { points })
+    let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
+    Ok(StaticCurve {
+        points,
+        failure: (!failures.is_empty()).then(|| failures.join("; ")),
+    })
 }
 
-/// Loads from rest through `pressures` (one sign, increasing magnitude).
+/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached,
+/// and why the branch stopped short if it did.
 fn solve_branch(
     system: &MechanicalSystem,
     pressures: &[f64],
     options: &UdspOptions,
-) -> Result<Vec<UdspPoint>, MechanicsError> {
+) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
     let mut solver = StaticSolver::new(&system.model, system.fixed.clone())
@@ -170,10 +182,10 @@ fn solve_branch(
                 // the lateral normals point into the canal: canal pressure pushes against them
                 pressure: -p,
             };
-            let report = solver
-                .solve_with_pressure(&mut x, &loads, &load, &static_options)
-                .map_err(MechanicsError::solve(format!("static pressure {p:.0} Pa")))?;
-            iterations += report.iterations;
+            match solver.solve_with_pressure(&mut x, &loads, &load, &static_options) {
+                Ok(report) => iterations += report.iterations,
+                Err(e) => return Ok((out, Some(format!("static pressure {p:.0} Pa: {e}")))),
+            }
         }
         current = target;
         out.push(UdspPoint {
@@ -182,5 +194,5 @@ fn solve_branch(
             iterations,
         });
     }
-    Ok(out)
+    Ok((out, None))
 }

@@ -62,7 +62,7 @@ pub fn mechanics(
     let t = std::time::Instant::now();
     let udsp = match &options.udsp {
         Some(udsp) => static_pressure_curve(&system, udsp)?,
-        None => StaticCurve { points: Vec::new() },
+        None => StaticCurve::default(),
     };
     Ok(Mechanics {
         transfer_function,

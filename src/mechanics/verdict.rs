@@ -211,5 +211,17 @@ pub fn relative_verdict(
         (1.0, 1.0),
         "",
     ));
+    gates.push(loaded_to_the_end(udsp));
     Verdict::new("relative", gates)
+}
+
+/// Whether every static-pressure increment reached equilibrium (`StaticCurve::failure` says
+/// where one did not).
+fn loaded_to_the_end(udsp: &StaticCurve) -> Gate {
+    Gate::band(
+        "static pressure carried to every load (1 = yes)",
+        if udsp.failure.is_none() { 1.0 } else { 0.0 },
+        (1.0, 1.0),
+        "",
+    )
 }

@@ -2,9 +2,10 @@
 //! registered atlas against the atlas it came from (transfer function, and the static-pressure
 //! curve when asked), gates relative to the atlas (docs/mechanics.md). The atlas's own
 //! mechanics are computed once per process and atlas, so a cohort shares them; the embedded
-//! default atlas's transfer function ships with the binary (`assets/reference_mechanics.json`,
-//! written by `cargo run --release --example write_reference_mechanics`, checked against a
-//! fresh computation by a test), so a single `run` does not recompute it.
+//! default atlas's transfer function and gate-pressure static curve ship with the binary
+//! (`assets/reference_mechanics.json`, written by `cargo run --release --example
+//! write_reference_mechanics`, checked against a fresh computation by a test), so a single
+//! `run` does not recompute them.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, LazyLock, Mutex};
@@ -30,12 +31,14 @@ type ReferenceKey = (String, bool);
 static REFERENCES: LazyLock<Mutex<BTreeMap<ReferenceKey, Arc<Mechanics>>>> =
     LazyLock::new(|| Mutex::new(BTreeMap::new()));
 
-/// The embedded default atlas's transfer function (default `TfaOptions`) and the SHA-256 of
-/// the atlas it belongs to, on each side.
+/// The embedded default atlas's transfer function (default `TfaOptions`) and static curve at
+/// the gate pressures (`gate_udsp`), with the SHA-256 of the atlas they belong to, on each
+/// side.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EmbeddedReference {
     pub atlas_sha256: Vec<String>,
     pub transfer_function: TransferFunction,
+    pub static_pressure: StaticCurve,
 }
 
 const EMBEDDED_REFERENCE: &str = include_str!("../../assets/reference_mechanics.json");
@@ -57,24 +60,31 @@ pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
         &atlas,
         atlas.nodes(),
         &ValidationOptions {
-            udsp: None,
+            udsp: Some(gate_udsp()),
             ..ValidationOptions::default()
         },
     )?;
     Ok(EmbeddedReference {
         atlas_sha256: atlas_sha,
         transfer_function: m.transfer_function,
+        static_pressure: m.udsp,
     })
+}
+
+/// The static-pressure sweep of `[validate] static_pressure`: the gate pressures ±1, ±2,
+/// ±4 kPa with the default increments.
+fn gate_udsp() -> UdspOptions {
+    UdspOptions {
+        pressures_pa: crate::mechanics::udsp::GATE_PRESSURES_PA.to_vec(),
+        ..UdspOptions::default()
+    }
 }
 
 /// What `[validate]` asks for: the default 1/3-octave transfer function, and the gate
 /// pressures ±1, ±2, ±4 kPa when `static_pressure` is on.
 pub fn options(cfg: &ValidateConfig) -> ValidationOptions {
     ValidationOptions {
-        udsp: cfg.static_pressure.then(|| UdspOptions {
-            pressures_pa: crate::mechanics::udsp::GATE_PRESSURES_PA.to_vec(),
-            ..UdspOptions::default()
-        }),
+        udsp: cfg.static_pressure.then(gate_udsp),
         ..ValidationOptions::default()
     }
 }
@@ -92,12 +102,18 @@ fn reference(atlas: &Atlas, options: &ValidationOptions) -> Result<Arc<Mechanics
     if let Some(m) = cached(&key) {
         return Ok(m);
     }
-    if options.udsp.is_none() && options.tfa == TfaOptions::default() {
+    let shippable = options.tfa == TfaOptions::default()
+        && options.eardrum_bending_mm.is_none()
+        && options.udsp.as_ref().is_none_or(|u| *u == gate_udsp());
+    if shippable {
         let shipped = embedded_reference().filter(|r| r.atlas_sha256.contains(&key.0));
         if let Some(r) = shipped {
             return Ok(Arc::new(Mechanics {
                 transfer_function: r.transfer_function,
-                udsp: StaticCurve { points: Vec::new() },
+                udsp: match options.udsp {
+                    Some(_) => r.static_pressure,
+                    None => StaticCurve::default(),
+                },
                 tfa_seconds: 0.0,
                 udsp_seconds: 0.0,
             }));

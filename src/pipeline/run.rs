@@ -368,6 +368,9 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             v.verdict.failures().count(),
             v.verdict.gates.len()
         ));
+        if let Some(why) = &v.mechanics.udsp.failure {
+            progress::log(format!("{}: static pressure stopped short: {why}", case.id));
+        }
         stage_times.push(("validate", t.elapsed().as_secs_f64()));
         Some(v)
     } else {

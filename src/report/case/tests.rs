@@ -312,7 +312,7 @@ fn validation() -> crate::mechanics::Validation {
     };
     let mechanics = |t: TransferFunction| Mechanics {
         transfer_function: t,
-        udsp: StaticCurve { points: vec![] },
+        udsp: StaticCurve::default(),
         tfa_seconds: 0.0,
         udsp_seconds: 0.0,
     };
