@@ -251,8 +251,10 @@ fn two_runs_give_byte_identical_packages() {
     }
 }
 
-/// SOFA components and plugins named in mechanics-metrics §2 (v23.06–v24.12).
-const NOTE_COMPONENTS: [&str; 18] = [
+/// SOFA components and plugins named in mechanics-metrics §2 (v23.06–v24.12), and the two of
+/// the eardrum's bending (FastTriangularBendingSprings in Sofa.Component.SolidMechanics.Spring,
+/// ConstantForceField in Sofa.Component.MechanicalLoad; sofa-framework/sofa sources).
+const NOTE_COMPONENTS: [&str; 20] = [
     "Node",
     "RequiredPlugin",
     "DefaultAnimationLoop",
@@ -271,6 +273,8 @@ const NOTE_COMPONENTS: [&str; 18] = [
     "RestShapeSpringsForceField",
     "DiagonalVelocityDampingForceField",
     "SurfacePressureForceField",
+    "FastTriangularBendingSprings",
+    "ConstantForceField",
 ];
 const NOTE_PLUGINS: [&str; 10] = [
     "Sofa.Component.IO.Mesh",
@@ -285,14 +289,26 @@ const NOTE_PLUGINS: [&str; 10] = [
     "Sofa.Component.MechanicalLoad",
 ];
 
-/// Nodes and elements (type, physical tag) of a Gmsh 2.2 ASCII file, read plainly.
-fn read_gmsh(text: &str) -> (usize, Vec<(u32, u16)>) {
+/// A Gmsh element: type, physical tag, nodes (0-based).
+type GmshElement = (u32, u16, Vec<usize>);
+
+/// Node coordinates and elements of a Gmsh 2.2 ASCII file, read plainly.
+fn read_gmsh(text: &str) -> (Vec<[f64; 3]>, Vec<GmshElement>) {
     let mut lines = text.lines();
-    let mut nodes = 0;
+    let mut nodes = Vec::new();
     let mut elements = Vec::new();
     while let Some(l) = lines.next() {
         if l == "$Nodes" {
-            nodes = lines.next().unwrap().parse().unwrap();
+            let n: usize = lines.next().unwrap().parse().unwrap();
+            for _ in 0..n {
+                let w: Vec<f64> = lines
+                    .next()
+                    .unwrap()
+                    .split(' ')
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                nodes.push([w[1], w[2], w[3]]);
+            }
         }
         if l == "$Elements" {
             let n: usize = lines.next().unwrap().parse().unwrap();
@@ -303,7 +319,8 @@ fn read_gmsh(text: &str) -> (usize, Vec<(u32, u16)>) {
                     .split(' ')
                     .map(|x| x.parse().unwrap())
                     .collect();
-                elements.push((w[1], w[3] as u16));
+                let corners = w[3 + w[2] as usize..].iter().map(|&v| v as usize - 1);
+                elements.push((w[1], w[3] as u16, corners.collect()));
             }
         }
     }
@@ -315,7 +332,9 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
     let package = base_run().join("package");
     let text = std::fs::read_to_string(package.join("scene.scn")).unwrap();
     let doc = roxmltree::Document::parse(&text).unwrap();
-    let (n, elements) = read_gmsh(&std::fs::read_to_string(package.join("mesh.msh")).unwrap());
+    let (positions, elements) =
+        read_gmsh(&std::fs::read_to_string(package.join("mesh.msh")).unwrap());
+    let n = positions.len();
     let tet_labels: Vec<u16> = elements.iter().filter(|e| e.0 == 4).map(|e| e.1).collect();
     let tri_labels: Vec<u16> = elements.iter().filter(|e| e.0 == 2).map(|e| e.1).collect();
     assert_eq!(tet_labels.len() + tri_labels.len(), elements.len());
@@ -416,6 +435,161 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
         numbers("DiagonalVelocityDampingForceField", "dampingCoefficient").len(),
         3 * n
     );
+    let triangles: Vec<[usize; 3]> = elements
+        .iter()
+        .filter(|e| e.0 == 2)
+        .map(|e| [e.2[0], e.2[1], e.2[2]])
+        .collect();
+    check_bending(&by_tag, &atlas, &positions, &triangles, &tri_labels);
+}
+
+/// The eardrum's bending components against atlas.json and SOFA's formula, computed here
+/// afresh: per triangle, the summed `bendingStiffness` is 3 E h_b³/(12(1 − ν²)) of its
+/// region; Volino's springs (FastTriangularBendingSprings.inl: wings A, B, edge C–D,
+/// α_A = |N_B|/(|N_A| + |N_B|), …, λ = ⅔ (h_A + h_B)/(h_A² h_B²) |CD| S, f = −λ α R) plus the
+/// ConstantForceField leave no force at the rest positions.
+fn check_bending(
+    by_tag: &BTreeMap<&str, Vec<roxmltree::Node>>,
+    atlas: &Value,
+    x: &[[f64; 3]],
+    triangles: &[[usize; 3]],
+    tri_labels: &[u16],
+) {
+    let rigidity = |label: u16| {
+        let r = atlas["regions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["label"] == label)
+            .unwrap();
+        let m = &atlas["materials"][r["material"].as_str().unwrap()];
+        let (e, nu) = (
+            m["youngs_modulus_pa"].as_f64().unwrap(),
+            m["poisson_ratio"].as_f64().unwrap(),
+        );
+        r["bending_thickness_mm"]
+            .as_f64()
+            .map_or(0.0, |h| e * h.powi(3) / (12.0 * (1.0 - nu * nu)))
+    };
+    let mut summed = vec![0.0; triangles.len()];
+    let mut force = vec![[0.0f64; 3]; x.len()];
+    let index: BTreeMap<[usize; 3], usize> = triangles
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let mut s = *t;
+            s.sort();
+            (s, k)
+        })
+        .collect();
+    let springs = &by_tag["FastTriangularBendingSprings"];
+    for spring in springs {
+        let s: f64 = spring
+            .attribute("bendingStiffness")
+            .unwrap()
+            .parse()
+            .unwrap();
+        let topology = spring
+            .attribute("topology")
+            .unwrap()
+            .trim_start_matches('@');
+        let container = spring
+            .parent()
+            .unwrap()
+            .children()
+            .find(|c| c.attribute("name") == Some(topology))
+            .unwrap();
+        let mine: Vec<usize> = match container.attribute("triangles").unwrap() {
+            t if t.starts_with('@') => (0..triangles.len()).collect(),
+            t => {
+                let v: Vec<usize> = t.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                v.chunks(3)
+                    .map(|c| {
+                        let mut s = [c[0], c[1], c[2]];
+                        s.sort();
+                        index[&s]
+                    })
+                    .collect()
+            }
+        };
+        let mut opposite: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
+        for &t in &mine {
+            summed[t] += s;
+            let v = triangles[t];
+            for k in 0..3 {
+                let (p, q) = (v[k].min(v[(k + 1) % 3]), v[k].max(v[(k + 1) % 3]));
+                opposite.entry((p, q)).or_default().push(v[(k + 2) % 3]);
+            }
+        }
+        let sub = |a: usize, b: usize| [0, 1, 2].map(|i| x[a][i] - x[b][i]);
+        let cross = |u: [f64; 3], w: [f64; 3]| {
+            [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ]
+        };
+        let norm = |u: [f64; 3]| norm3(&u);
+        for (&(c, d), wings) in &opposite {
+            let [a, b] = wings[..] else { continue };
+            let na = norm(cross(sub(a, c), sub(a, d)));
+            let nb = norm(cross(sub(b, d), sub(b, c)));
+            let nc = norm(cross(sub(c, b), sub(c, a)));
+            let nd = norm(cross(sub(d, a), sub(d, b)));
+            let alpha = [
+                nb / (na + nb),
+                na / (na + nb),
+                -nd / (nc + nd),
+                -nc / (nc + nd),
+            ];
+            let l = norm(sub(c, d));
+            // distance of a wing to the edge line: |(w - c) x (d - c)| / |d - c|
+            let (ha, hb) = (
+                norm(cross(sub(a, c), sub(d, c))) / l,
+                norm(cross(sub(b, c), sub(d, c))) / l,
+            );
+            let lambda = 2.0 / 3.0 * (ha + hb) / (ha * ha * hb * hb) * l * s;
+            let nodes = [a, b, c, d];
+            let r: [f64; 3] = [0, 1, 2].map(|i| (0..4).map(|k| alpha[k] * x[nodes[k]][i]).sum());
+            for k in 0..4 {
+                for i in 0..3 {
+                    force[nodes[k]][i] -= lambda * alpha[k] * r[i];
+                }
+            }
+        }
+    }
+    for (t, &label) in tri_labels.iter().enumerate() {
+        let want = 3.0 * rigidity(label);
+        assert!(
+            (summed[t] - want).abs() <= 1e-9 * want,
+            "triangle {t}: {} vs {want}",
+            summed[t]
+        );
+    }
+    let push = force.iter().map(norm3).fold(0.0, f64::max);
+    assert!(push > 0.0, "the curved eardrum's springs push at rest");
+    for cff in &by_tag["ConstantForceField"] {
+        let parse = |attr: &str| -> Vec<f64> {
+            cff.attribute(attr)
+                .unwrap()
+                .split_whitespace()
+                .map(|v| v.parse().unwrap())
+                .collect()
+        };
+        let (indices, forces) = (parse("indices"), parse("forces"));
+        assert_eq!(forces.len(), 3 * indices.len());
+        for (k, &v) in indices.iter().enumerate() {
+            for i in 0..3 {
+                force[v as usize][i] += forces[3 * k + i];
+            }
+        }
+    }
+    let left = force.iter().map(norm3).fold(0.0, f64::max);
+    assert!(left <= 1e-9 * push, "{left} of {push} uN left at rest");
+}
+
+fn norm3(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 #[test]

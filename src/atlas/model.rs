@@ -278,6 +278,24 @@ impl Atlas {
         compact(&self.part_triangles(part), nodes)
     }
 
+    /// The flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm) of each membrane triangle, in
+    /// mesh order: its region's material at the region's bending thickness; 0 for a
+    /// bending-free triangle or one whose region or material is unknown.
+    pub fn membrane_flexural_rigidity(&self) -> Vec<f64> {
+        self.mesh
+            .triangle_regions
+            .iter()
+            .map(|&label| {
+                self.region(label)
+                    .and_then(|r| {
+                        let m = self.materials.get(&r.material)?;
+                        membrane_material(r, m, m.youngs_modulus_pa)
+                    })
+                    .map_or(0.0, |m| m.flexural_rigidity())
+            })
+            .collect()
+    }
+
     /// The FEM model with its rest shape at `nodes`. With `registration = (E, r)`, every
     /// modulus is scaled by the same factor so that the stiffest region (bone) gets E, and no
     /// region is softer than r·E: the atlas's stiffness ordering stays, its absolute level
@@ -314,16 +332,10 @@ impl Atlas {
                 m.poisson_ratio,
                 m.density_kg_m3 * KG_PER_M3_TO_G_PER_MM3,
             );
-            match r.thickness_mm {
-                Some(h) => {
+            match membrane_material(r, m, e) {
+                Some(material) => {
                     membrane_index.insert(r.label, membrane_materials.len() as u32);
-                    membrane_materials.push(MembraneMaterial {
-                        youngs_modulus: e,
-                        poisson_ratio: nu,
-                        thickness: h,
-                        bending_thickness: r.bending_thickness_mm,
-                        density: rho,
-                    });
+                    membrane_materials.push(material);
                 }
                 None => {
                     tet_index.insert(r.label, tet_materials.len() as u32);
@@ -395,6 +407,22 @@ impl Atlas {
         };
         a
     }
+}
+
+/// The FEM material of membrane region `r` made of `m` at Young's modulus `youngs_modulus`
+/// (Pa); `None` for a volumetric region (no thickness).
+fn membrane_material(
+    r: &RegionInfo,
+    m: &MaterialInfo,
+    youngs_modulus: f64,
+) -> Option<MembraneMaterial> {
+    r.thickness_mm.map(|h| MembraneMaterial {
+        youngs_modulus,
+        poisson_ratio: m.poisson_ratio,
+        thickness: h,
+        bending_thickness: r.bending_thickness_mm,
+        density: m.density_kg_m3 * KG_PER_M3_TO_G_PER_MM3,
+    })
 }
 
 /// Triangles over a large node array as a compact mesh (vertices in order of first use).

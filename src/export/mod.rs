@@ -8,8 +8,10 @@ pub mod digest;
 pub mod manifest;
 pub mod package;
 pub mod scene;
+mod scene_bending;
 pub mod sofa;
 pub mod verify;
+mod verify_bending;
 mod verify_scene;
 
 pub use manifest::{Manifest, MechanicsSummary, atlas_sha256};

@@ -1,8 +1,8 @@
 //! The package's SOFA scene (`scene.scn`, SOFA v23.06 and later): it loads `mesh.msh` beside
 //! it with MeshGmshLoader and simulates the registered atlas as otoatlas's own mechanics does
 //! (`mechanics::MechanicalSystem`: the same lumped masses, fixed nodes, annular-ligament
-//! springs, cochlear dashpots and Rayleigh damping), except the eardrum's bending, which
-//! SOFA's core cannot represent on a curved rest shape (the scene says so in a comment).
+//! springs, cochlear dashpots and Rayleigh damping; the eardrum's bending as linear bending
+//! springs about the rest shape, `scene_bending`).
 //!
 //! Facts from the research note mechanics-metrics §2 (checked in sofa-framework/sofa
 //! v23.06–v24.12): per-element `youngModulus` vectors are written full length in topology order
@@ -19,6 +19,7 @@ use std::fmt::Write as _;
 
 use nalgebra::Point3;
 
+use super::scene_bending::{self, BendingLayer};
 use super::sofa::plugins_for;
 use crate::Error;
 use crate::atlas::Atlas;
@@ -136,6 +137,7 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
         .map(|(v, k)| (v, *k))
         .collect();
     let membranes = !atlas.mesh.triangles.is_empty();
+    let bending = scene_bending::layers(&atlas.membrane_flexural_rigidity());
 
     let mut used = vec![
         "DefaultAnimationLoop",
@@ -156,6 +158,9 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
             "TriangularFEMForceField",
             "SurfacePressureForceField",
         ]);
+    }
+    if !bending.is_empty() {
+        used.extend(["FastTriangularBendingSprings", "ConstantForceField"]);
     }
     let mut s = String::from("<?xml version=\"1.0\"?>\n");
     s.push_str(
@@ -229,19 +234,6 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
              \x20           <TriangleSetTopologyContainer name=\"drum\" \
              position=\"@../../loader.position\" triangles=\"@../../loader.triangles\"/>\n",
         );
-        if atlas
-            .regions
-            .iter()
-            .any(|r| r.bending_thickness_mm.is_some())
-        {
-            s.push_str(
-                "            <!-- NOT IN THIS SCENE: the atlas's eardrum also bends (a shell, \
-                 bending_thickness_mm in atlas.json). SOFA's core has no bending term with a \
-                 curved rest shape (FastTriangularBendingSprings rests flat), so this eardrum \
-                 is bending-free and softer than otoatlas's at low frequency (docs/mechanics.md, \
-                 SOFA scene) -->\n",
-            );
-        }
         let _ = writeln!(
             s,
             "            <!-- E x thickness per triangle (Pa mm): the triangle has no thickness of \
@@ -254,9 +246,70 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Erro
             "            <!-- follower pressure (Pa) on the eardrum: the triangles face the ear \
              canal, so an ear-canal pressure p is pressure=\"-p\" -->\n\
              \x20           <SurfacePressureForceField name=\"earCanalPressure\" topology=\"@drum\" \
-             pressure=\"0\"/>\n        </Node>\n",
+             pressure=\"0\"/>\n",
         );
+        write_bending(&mut s, &atlas.mesh.triangles, nodes, &bending);
+        s.push_str("        </Node>\n");
     }
     s.push_str("    </Node>\n</Node>\n");
     Ok(s)
+}
+
+/// The eardrum's bending inside the "Eardrum" node (`scene_bending`): the layer on every
+/// triangle uses the node's topology, the others a child node with their triangles, and one
+/// ConstantForceField cancels the springs' force at the rest positions `nodes`.
+fn write_bending(
+    s: &mut String,
+    triangles: &[[u32; 3]],
+    nodes: &[Point3<f64>],
+    layers: &[BendingLayer],
+) {
+    if layers.is_empty() {
+        return;
+    }
+    s.push_str(
+        "            <!-- eardrum bending (a shell: bending_thickness_mm in atlas.json): Volino's \
+         linear bending springs, bendingStiffness 3 x the flexural rigidity E h^3/(12(1 - nu^2)) \
+         (uN mm), which gives otoatlas's discrete-shell hinges on a flat hinge; stacked layers \
+         where the rigidity differs (each triangle's layers sum to 3 x its own). The springs \
+         rest flat, so bendingRestForce cancels their push at this curved rest shape: linear \
+         bending about it, exact for small rotations (docs/mechanics.md, SOFA scene) -->\n",
+    );
+    let cancel = scene_bending::rest_force_cancellation(nodes, triangles, layers);
+    let loaded: Vec<u32> = (0..nodes.len() as u32)
+        .filter(|&v| cancel[v as usize] != nalgebra::Vector3::zeros())
+        .collect();
+    let mut children = String::new();
+    for (k, layer) in layers.iter().enumerate() {
+        if layer.triangles.len() == triangles.len() {
+            let _ = writeln!(
+                s,
+                "            <FastTriangularBendingSprings name=\"bending\" topology=\"@drum\" \
+                 bendingStiffness=\"{:?}\"/>",
+                layer.stiffness
+            );
+        } else {
+            let _ = writeln!(
+                children,
+                "            <Node name=\"BendingLayer{k}\">\n\
+                 \x20               <TriangleSetTopologyContainer name=\"layer\" \
+                 position=\"@../../../loader.position\" triangles=\"{}\"/>\n\
+                 \x20               <FastTriangularBendingSprings name=\"bending\" \
+                 topology=\"@layer\" bendingStiffness=\"{:?}\"/>\n            </Node>",
+                join_indices(layer.triangles.iter().flat_map(|&t| triangles[t])),
+                layer.stiffness
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "            <ConstantForceField name=\"bendingRestForce\" topology=\"@drum\" \
+         indices=\"{}\" forces=\"{}\"/>",
+        join_indices(loaded.iter().copied()),
+        join(loaded.iter().flat_map(|&v| {
+            let f = cancel[v as usize];
+            [f.x, f.y, f.z]
+        }))
+    );
+    s.push_str(&children);
 }

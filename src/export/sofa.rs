@@ -8,7 +8,7 @@ pub const STRUCTURAL: [&str; 2] = ["Node", "RequiredPlugin"];
 
 /// (component, plugin): every component the scene may contain. `None`: part of the core
 /// (Sofa.Simulation.Core), needs no `RequiredPlugin`.
-pub const COMPONENTS: [(&str, Option<&str>); 16] = [
+pub const COMPONENTS: [(&str, Option<&str>); 18] = [
     ("DefaultAnimationLoop", None),
     ("MeshGmshLoader", Some("Sofa.Component.IO.Mesh")),
     ("MeshVTKLoader", Some("Sofa.Component.IO.Mesh")),
@@ -58,6 +58,11 @@ pub const COMPONENTS: [(&str, Option<&str>); 16] = [
     (
         "SurfacePressureForceField",
         Some("Sofa.Component.MechanicalLoad"),
+    ),
+    ("ConstantForceField", Some("Sofa.Component.MechanicalLoad")),
+    (
+        "FastTriangularBendingSprings",
+        Some("Sofa.Component.SolidMechanics.Spring"),
     ),
 ];
 

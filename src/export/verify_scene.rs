@@ -13,6 +13,7 @@ use roxmltree::{Document, Node};
 use super::scene::{CellMaterials, SCENE};
 use super::sofa::{STRUCTURAL, plugin_of};
 use super::verify::Faults;
+use super::verify_bending::check_bending;
 use crate::atlas::Atlas;
 use crate::atlas::materials::KG_PER_M3_TO_G_PER_MM3;
 use crate::mesh::io::VolumeMesh;
@@ -21,16 +22,21 @@ use crate::mesh::tet::signed_volume;
 /// Largest relative difference accepted between a scene number and its recomputation.
 const REL_TOL: f64 = 1e-9;
 
-fn close(a: f64, b: f64) -> bool {
+pub(super) fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= REL_TOL * a.abs().max(b.abs())
 }
 
 /// The scene's elements by tag name.
-struct Scene<'a, 'input> {
+pub(super) struct Scene<'a, 'input> {
     by_tag: BTreeMap<&'a str, Vec<Node<'a, 'input>>>,
 }
 
 impl<'a, 'input> Scene<'a, 'input> {
+    /// Every element named `tag`.
+    pub(super) fn all(&self, tag: &str) -> impl Iterator<Item = Node<'a, 'input>> + '_ {
+        self.by_tag.get(tag).into_iter().flatten().copied()
+    }
+
     /// The one element named `tag` (a fault if absent or repeated).
     fn one(&self, tag: &str, faults: &mut Faults) -> Option<Node<'a, 'input>> {
         match self.by_tag.get(tag).map(Vec::as_slice) {
@@ -49,7 +55,7 @@ impl<'a, 'input> Scene<'a, 'input> {
 }
 
 /// The numbers of attribute `attr` of `node` (a fault if absent or not numbers).
-fn numbers(node: Node, attr: &str, faults: &mut Faults) -> Option<Vec<f64>> {
+pub(super) fn numbers(node: Node, attr: &str, faults: &mut Faults) -> Option<Vec<f64>> {
     let tag = node.tag_name().name();
     let Some(text) = node.attribute(attr) else {
         faults.add("scene", SCENE, format!("{tag} has no {attr}"));
@@ -171,6 +177,7 @@ pub(super) fn check_scene(
     }
     if let Some(mesh) = mesh {
         check_vectors(&scene, mesh, atlas, faults);
+        check_bending(&scene, mesh, atlas, faults);
     }
 }
 

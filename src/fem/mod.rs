@@ -11,7 +11,7 @@
 //! This module depends on no other otoatlas module.
 
 mod assembly;
-mod bending;
+pub(crate) mod bending;
 mod cholesky;
 mod dynamics;
 mod element;
