@@ -143,9 +143,10 @@ fn the_shipped_reference_is_the_default_atlas_mechanics() {
     assert!(a.failure.is_none() && b.failure.is_none());
     for (p, q) in a.points.iter().zip(&b.points) {
         assert_eq!(p.pressure_pa, q.pressure_pa, "{stale}");
-        // Newton stops within 1e-5 mm of equilibrium; CPUs may stop one iteration apart
+        // the gate curve's Newton iterations stop at updates under 1e-4 mm; CPUs rounding
+        // differently may stop one iteration apart (a stale atlas is off by far more)
         assert!(
-            (p.umbo_mm - q.umbo_mm).abs() < 1e-4,
+            (p.umbo_mm - q.umbo_mm).abs() < 5e-4,
             "{stale}: {} Pa",
             p.pressure_pa
         );
