@@ -299,32 +299,36 @@ fn read_gmsh(text: &str) -> (Vec<[f64; 3]>, Vec<GmshElement>) {
     let mut elements = Vec::new();
     while let Some(l) = lines.next() {
         if l == "$Nodes" {
-            let n: usize = lines.next().unwrap().parse().unwrap();
-            for _ in 0..n {
-                let w: Vec<f64> = lines
-                    .next()
-                    .unwrap()
-                    .split(' ')
-                    .map(|x| x.parse().unwrap())
-                    .collect();
-                nodes.push([w[1], w[2], w[3]]);
-            }
+            nodes = rows::<f64>(&mut lines)
+                .iter()
+                .map(|w| [w[1], w[2], w[3]])
+                .collect();
         }
         if l == "$Elements" {
-            let n: usize = lines.next().unwrap().parse().unwrap();
-            for _ in 0..n {
-                let w: Vec<u32> = lines
-                    .next()
-                    .unwrap()
-                    .split(' ')
-                    .map(|x| x.parse().unwrap())
-                    .collect();
-                let corners = w[3 + w[2] as usize..].iter().map(|&v| v as usize - 1);
-                elements.push((w[1], w[3] as u16, corners.collect()));
-            }
+            elements = rows::<u32>(&mut lines)
+                .iter()
+                .map(|w| {
+                    let corners = w[3 + w[2] as usize..].iter().map(|&v| v as usize - 1);
+                    (w[1], w[3] as u16, corners.collect())
+                })
+                .collect();
         }
     }
     (nodes, elements)
+}
+
+/// A Gmsh section's rows: its count line, then that many lines of space-separated numbers.
+fn rows<T: std::str::FromStr>(lines: &mut std::str::Lines) -> Vec<Vec<T>>
+where
+    T::Err: std::fmt::Debug,
+{
+    let n: usize = lines.next().unwrap().parse().unwrap();
+    (0..n)
+        .map(|_| {
+            let line = lines.next().unwrap();
+            line.split(' ').map(|x| x.parse().unwrap()).collect()
+        })
+        .collect()
 }
 
 #[test]
