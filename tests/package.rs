@@ -346,13 +346,7 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
     let atlas: Value =
         serde_json::from_slice(&std::fs::read(package.join("atlas.json")).unwrap()).unwrap();
     let region = |label: u16| {
-        let r = atlas["regions"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["label"] == label)
-            .unwrap();
-        let m = &atlas["materials"][r["material"].as_str().unwrap()];
+        let (r, m) = region_and_material(&atlas, label);
         (
             m["youngs_modulus_pa"].as_f64().unwrap(),
             m["poisson_ratio"].as_f64().unwrap(),
@@ -447,6 +441,17 @@ fn sofa_scene_uses_documented_components_and_full_length_vectors() {
     check_bending(&by_tag, &atlas, &positions, &triangles, &tri_labels);
 }
 
+/// The region of `label` in atlas.json and its material.
+fn region_and_material(atlas: &Value, label: u16) -> (&Value, &Value) {
+    let r = atlas["regions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["label"] == label)
+        .unwrap();
+    (r, &atlas["materials"][r["material"].as_str().unwrap()])
+}
+
 /// The eardrum's bending components against atlas.json and SOFA's formula, computed here
 /// afresh: per triangle, the summed `bendingStiffness` is 3 E h_b³/(12(1 − ν²)) of its
 /// region; Volino's springs (FastTriangularBendingSprings.inl: wings A, B, edge C–D,
@@ -460,13 +465,7 @@ fn check_bending(
     tri_labels: &[u16],
 ) {
     let rigidity = |label: u16| {
-        let r = atlas["regions"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["label"] == label)
-            .unwrap();
-        let m = &atlas["materials"][r["material"].as_str().unwrap()];
+        let (r, m) = region_and_material(atlas, label);
         let (e, nu) = (
             m["youngs_modulus_pa"].as_f64().unwrap(),
             m["poisson_ratio"].as_f64().unwrap(),
