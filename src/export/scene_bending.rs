@@ -22,9 +22,9 @@
 //! on the triangles with D ≥ D_k at S = 3(D_k − D_{k−1}). A triangle's layers sum to 3D; a
 //! hinge between two rigidities gets the smaller (otoatlas: their mean).
 
-use std::collections::HashMap;
-
 use nalgebra::{Point3, Vector3};
+
+use crate::fem::bending::interior_edges;
 
 /// SOFA's `bendingStiffness` per unit flexural rigidity that reproduces the discrete-shell
 /// hinge (module doc).
@@ -71,24 +71,9 @@ struct Spring {
 /// The springs FastTriangularBendingSprings builds on `triangles` at rest positions `x` with
 /// `bendingStiffness` `s`.
 fn springs(x: &[Point3<f64>], triangles: &[[u32; 3]], s: f64) -> Vec<Spring> {
-    // edge (lo, hi) -> opposite nodes of its triangles
-    let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
-    for tri in triangles {
-        for k in 0..3 {
-            let (p, q) = (tri[k], tri[(k + 1) % 3]);
-            edges
-                .entry((p.min(q), p.max(q)))
-                .or_default()
-                .push(tri[(k + 2) % 3]);
-        }
-    }
-    let mut keys: Vec<_> = edges.keys().copied().collect();
-    keys.sort_unstable();
-    keys.into_iter()
-        .filter_map(|(c, d)| match edges[&(c, d)].as_slice() {
-            &[a, b] => spring([a, b, c, d], x, s),
-            _ => None,
-        })
+    interior_edges(triangles)
+        .into_iter()
+        .filter_map(|((c, d), [(_, a), (_, b)])| spring([a, b, c, d], x, s))
         .collect()
 }
 

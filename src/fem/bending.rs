@@ -62,45 +62,55 @@ pub(crate) fn angle_and_gradient(
     Some((angle, [gp, gq, ga, gb]))
 }
 
-/// The hinges of the interior edges of `triangles` (edges shared by exactly two), with the
-/// flexural rigidity `rigidity(t)` (µN·mm) of triangle t and the rest positions `rest`; an
-/// edge whose two triangles have no rigidity gets no hinge.
+/// An interior edge: (lo, hi) and, for each of its two triangles, (triangle index, opposite
+/// node).
+pub(crate) type InteriorEdge = ((u32, u32), [(usize, u32); 2]);
+
+/// The interior edges of `triangles` (edges shared by exactly two), sorted by edge: the edge
+/// (lo, hi) and, for each of its triangles in order, (triangle index, opposite node).
+pub(crate) fn interior_edges<'a>(
+    triangles: impl IntoIterator<Item = &'a [u32; 3]>,
+) -> Vec<InteriorEdge> {
+    let mut edges: HashMap<(u32, u32), Vec<(usize, u32)>> = HashMap::new();
+    for (t, tri) in triangles.into_iter().enumerate() {
+        for k in 0..3 {
+            let (p, q, o) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            edges.entry((p.min(q), p.max(q))).or_default().push((t, o));
+        }
+    }
+    let mut interior: Vec<_> = edges
+        .into_iter()
+        .filter_map(|(edge, sides)| Some((edge, <[(usize, u32); 2]>::try_from(sides).ok()?)))
+        .collect();
+    interior.sort_unstable_by_key(|(edge, _)| *edge);
+    interior
+}
+
+/// The hinges of the interior edges of `triangles`, with the flexural rigidity `rigidity(t)`
+/// (µN·mm) of triangle t and the rest positions `rest`; an edge whose two triangles have no
+/// rigidity gets no hinge. Sorted by edge.
 pub(crate) fn hinges(
     triangles: &[MembraneElement],
     rigidity: impl Fn(usize) -> f64,
     rest: &[Point3<f64>],
 ) -> Vec<BendingHinge> {
-    // edge (lo, hi) -> [(triangle, opposite node)]
-    let mut edges: HashMap<(u32, u32), Vec<(usize, u32)>> = HashMap::new();
-    for (t, tri) in triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (p, q, o) = (tri.nodes[k], tri.nodes[(k + 1) % 3], tri.nodes[(k + 2) % 3]);
-            edges.entry((p.min(q), p.max(q))).or_default().push((t, o));
-        }
-    }
-    let mut out: Vec<BendingHinge> = edges
+    interior_edges(triangles.iter().map(|t| &t.nodes))
         .into_iter()
-        .filter_map(|((p, q), sides)| {
-            let [(t1, a), (t2, b)] = sides.as_slice() else {
-                return None;
-            };
-            let nodes = [p, q, *a, *b];
+        .filter_map(|((p, q), [(t1, a), (t2, b)])| {
+            let nodes = [p, q, a, b];
             let (rest_angle, _) = angle_and_gradient(&nodes, rest)?;
             let len2 = (rest[q as usize] - rest[p as usize]).norm_squared();
-            let d = 0.5 * (rigidity(*t1) + rigidity(*t2));
+            let d = 0.5 * (rigidity(t1) + rigidity(t2));
             if d <= 0.0 {
                 return None;
             }
             Some(BendingHinge {
                 nodes,
-                stiffness: d * len2
-                    / (triangles[*t1].measure_area() + triangles[*t2].measure_area()),
+                stiffness: d * len2 / (triangles[t1].measure_area() + triangles[t2].measure_area()),
                 rest_angle,
             })
         })
-        .collect();
-    out.sort_by_key(|h| h.nodes);
-    out
+        .collect()
 }
 
 impl BendingHinge {
