@@ -338,12 +338,12 @@ fn bad_files_give_clear_errors() {
     assert!(e.contains("eardrum.flaccida_start_fraction"), "{e}");
 
     // a generator bowed medially (negative) or by more than a quarter of the annulus
+    let calibrated = DEFAULT_TOML
+        .lines()
+        .find(|l| l.starts_with("radial_sagitta_mm = "))
+        .unwrap();
     for bow in ["-0.1", "1.5"] {
-        let bad = DEFAULT_TOML.replacen(
-            "radial_sagitta_mm = 0.62",
-            &format!("radial_sagitta_mm = {bow}"),
-            1,
-        );
+        let bad = DEFAULT_TOML.replacen(calibrated, &format!("radial_sagitta_mm = {bow}"), 1);
         assert_ne!(bad, DEFAULT_TOML);
         let e = error_of(&bad);
         assert!(e.contains("eardrum.radial_sagitta_mm"), "{bow}: {e}");

@@ -5,8 +5,9 @@
 //! inner component. Each takes the most frequent label across its faces (ties: the
 //! smallest). Larger voids are kept: they may be real.
 //!
-//! Small pieces of a region are not merged: in the default anatomy the manubrium's tip is
-//! such a piece (joined to the handle only through the tensor tympani tendon at 0.35 mm).
+//! Small pieces of a region are not merged: in the default anatomy, at 0.34-0.35 mm edges,
+//! the manubrium's tip is such a piece (joined to the handle only through the tensor tympani
+//! tendon), which is why the default atlas is meshed at 0.33 mm.
 
 use super::lattice::{Lattice, NodeTets};
 use crate::mesh::tet::TET_FACES;

@@ -25,7 +25,7 @@
 //!
 //! Minimum feature size: a structure survives as a connected set of tets when it is at least
 //! about `0.7 h` thick (centroid rule; thinner sheets get holes), or about `0.4 h` for a region listed in
-//! [`MesherParams::thin_regions`] (measured on a tilted sheet; see the tests). For the default edge length
+//! [`MesherParams::thin_regions`] (measured on a tilted sheet; see the tests). For an edge length of
 //! 0.35 mm (`h` ≈ 0.38 mm) that is 0.27 mm, or 0.15 mm for thin regions; stapes crura
 //! (~0.3 mm) and ligaments (0.3–0.5 mm) should be listed as thin (a thin sheet is then one or
 //! two tets thick; mesh finer where bending through the thickness matters).
