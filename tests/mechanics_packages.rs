@@ -62,6 +62,9 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
                 "{case}: {row}"
             );
         }
+        if case == "case-001" {
+            package_commands(&out.join("package"), &manifest);
+        }
         let html = std::fs::read_to_string(out.join("report.html")).unwrap();
         assert!(html.contains("Mechanics of the package against the atlas"));
         assert!(html.contains("Goode et al. 1994 band"));
@@ -85,6 +88,56 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         }
     }
     assert!(faults.is_empty(), "{faults:?}");
+}
+
+/// `validate PACKAGE` and `simulate PACKAGE` on a run's package: the validation finds the
+/// source atlas from the manifest's SHA-256 and computes the transfer function `run` stored;
+/// a package that is not whole, or a reference that is not its atlas, is refused.
+fn package_commands(package: &std::path::Path, manifest: &serde_json::Value) {
+    let p = package.to_string_lossy();
+    let (code, json) = common::otoatlas_json(&["--quiet", "validate", &p]);
+    assert_eq!(code, 0, "{json}");
+    assert_eq!(json["verdict"]["kind"], "relative", "{json}");
+    assert!(json["reference"]["transfer_function"].is_object(), "{json}");
+    let stored = manifest["mechanics"]["transfer_function"]
+        .as_array()
+        .unwrap();
+    let computed = json["mechanics"]["transfer_function"]["points"]
+        .as_array()
+        .unwrap();
+    assert_eq!(computed.len(), stored.len());
+    for (c, s) in computed.iter().zip(stored) {
+        let (m, reference) = (
+            c["magnitude_um_s_per_pa"].as_f64().unwrap(),
+            s[1].as_f64().unwrap(),
+        );
+        assert!((m / reference - 1.0).abs() < 1e-6, "{c} vs {s}");
+    }
+
+    let (code, json) = common::otoatlas_json(&["--quiet", "simulate", &p, "--steps", "3"]);
+    assert_eq!(code, 0, "{json}");
+    let umbo = json["final_umbo_medial_mm"].as_f64().unwrap();
+    assert!(umbo > 0.0 && umbo < 0.2, "{json}");
+
+    // the package's own atlas.json is an atlas, but not the one it was registered from
+    let o = common::otoatlas(&["--quiet", "validate", &p, "--reference", &p]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("registered from atlas 'default'"),
+        "{stderr}"
+    );
+
+    let tampered = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(package).unwrap().flatten() {
+        if entry.path().is_file() {
+            std::fs::copy(entry.path(), tampered.path().join(entry.file_name())).unwrap();
+        }
+    }
+    let o = common::otoatlas(&["--quiet", "simulate", &tampered.path().to_string_lossy()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("not a whole patient package"), "{stderr}");
 }
 
 #[test]

@@ -5,6 +5,7 @@ pub mod atlas;
 mod batch;
 mod inspect;
 mod landmarks;
+mod package_arg;
 mod phantom;
 mod run;
 mod simulate;

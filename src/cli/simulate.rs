@@ -1,4 +1,4 @@
-//! `otoatlas simulate`: step an atlas in time (backward Euler, one solve per step) under a
+//! `otoatlas simulate [PACKAGE]`: step a patient package or an atlas in time (backward Euler, one solve per step) under a
 //! static ear-canal pressure or an umbo force, print the frame rate and write the umbo
 //! trajectory.
 
@@ -8,18 +8,23 @@ use std::path::PathBuf;
 use clap::Args;
 
 use super::Report;
+use super::package_arg::open_package;
 use crate::Error;
 use crate::atlas::load_atlas;
 use crate::mechanics::MechanicalSystem;
 use crate::mechanics::simulate::{SimulationOptions, simulate};
 
-/// Step an atlas in time and write the umbo trajectory.
+/// Step a patient package or an atlas in time and write the umbo trajectory.
 #[derive(Debug, Args)]
 #[command(after_help = "Examples:
   otoatlas simulate --steps 500 --pressure 2000 --out umbo.csv
+  otoatlas simulate out/case-001/package --steps 300 --out umbo.csv
   otoatlas simulate --atlas patient-atlas --dt 0.01 --umbo-force 500 --out umbo.json")]
 pub struct SimulateArgs {
-    /// The atlas folder; default: the embedded atlas.
+    /// A patient package (OUT/package of a run), verified before it is stepped.
+    #[arg(value_name = "PACKAGE", conflicts_with = "atlas")]
+    pub package: Option<PathBuf>,
+    /// An atlas folder; default (no PACKAGE either): the embedded atlas.
     #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
     /// Number of time steps.
@@ -53,7 +58,10 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
             args.steps
         )));
     }
-    let atlas = load_atlas(args.atlas.as_deref(), None)?;
+    let atlas = match &args.package {
+        Some(dir) => open_package(dir)?.atlas,
+        None => load_atlas(args.atlas.as_deref(), None)?,
+    };
     let system = MechanicalSystem::new(&atlas, atlas.nodes())?;
     let options = SimulationOptions {
         steps: args.steps,

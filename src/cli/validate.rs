@@ -1,6 +1,6 @@
-//! `otoatlas validate`: the mechanical checks (UDSP, TFA) of an atlas against the literature
-//! bands, or of a registered atlas against the atlas it came from; exit code 1 when a gate
-//! fails.
+//! `otoatlas validate [PACKAGE | --atlas DIR]`: the mechanical checks (UDSP, TFA) of an atlas
+//! against the literature bands, or of a patient package (or a registered atlas) against the
+//! atlas it came from; exit code 1 when a gate fails.
 
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use super::Report;
+use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::load_atlas;
 use crate::mechanics::plots::validation_plots;
@@ -18,16 +19,23 @@ use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_packag
 #[derive(Debug, Args)]
 #[command(after_help = "Examples:
   otoatlas validate                                  # the embedded atlas, literature gates
-  otoatlas validate --atlas patient-atlas --reference default --plots out/
+  otoatlas validate out/case-001/package --plots out/case-001/plots
+  otoatlas validate --atlas my-atlas                 # another atlas, literature gates
+  otoatlas validate out/p/package --reference my-atlas   # a package of my-atlas
   otoatlas validate --drive umbo --json
 
 Exit codes: 0 every gate passed, 1 a gate failed (the report says which), 2 bad input.")]
 pub struct ValidateArgs {
-    /// The atlas folder to validate; default: the embedded atlas.
+    /// A patient package (OUT/package of a run): verified, then gated against the atlas it
+    /// was registered from (the embedded one, or --reference), identified by the SHA-256 in
+    /// its manifest.
+    #[arg(value_name = "PACKAGE", conflicts_with = "atlas")]
+    pub package: Option<PathBuf>,
+    /// An atlas folder to validate against the literature bands; default: the embedded atlas.
     #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
-    /// Validate `--atlas` as a package of this atlas ("default" = the embedded one): same
-    /// mesh, registered node positions; gates relative to the reference.
+    /// The atlas the package (or --atlas, a registered atlas with the same mesh) came from;
+    /// "default" = the embedded one. Gates relative to it instead of the literature bands.
     #[arg(long, value_name = "DIR")]
     pub reference: Option<PathBuf>,
     /// Where the sound drives the ear.
@@ -47,25 +55,34 @@ pub struct ValidateArgs {
 }
 
 pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
-    let atlas = load_atlas(args.atlas.as_deref(), None)?;
     let mut options = ValidationOptions::default();
     options.tfa.drive = args.drive;
     options.eardrum_bending_mm = args.eardrum_bending;
-    let validation = match &args.reference {
-        None => validate_atlas(&atlas, &options)?,
-        Some(r) => {
-            let dir = (r.as_os_str() != "default").then_some(r.as_path());
-            let reference = load_atlas(dir, None)?;
-            let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
-                && reference.mesh.triangles == atlas.mesh.triangles;
-            if !same {
-                return Err(Error::Usage(
-                    "--atlas and --reference must share one mesh (a package is its atlas with \
-                     moved nodes)"
-                        .into(),
-                ));
+    let reference_dir = args
+        .reference
+        .as_deref()
+        .filter(|r| r.as_os_str() != "default");
+    let validation = if let Some(dir) = &args.package {
+        let package = open_package(dir)?;
+        let reference = source_atlas(&package, reference_dir)?;
+        validate_package(&reference, package.atlas.nodes(), &options)?
+    } else {
+        let atlas = load_atlas(args.atlas.as_deref(), None)?;
+        match &args.reference {
+            None => validate_atlas(&atlas, &options)?,
+            Some(_) => {
+                let reference = load_atlas(reference_dir, None)?;
+                let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
+                    && reference.mesh.triangles == atlas.mesh.triangles;
+                if !same {
+                    return Err(Error::Usage(
+                        "--atlas and --reference must share one mesh (a package is its atlas \
+                         with moved nodes)"
+                            .into(),
+                    ));
+                }
+                validate_package(&reference, atlas.nodes(), &options)?
             }
-            validate_package(&reference, atlas.nodes(), &options)?
         }
     };
     if let Some(dir) = &args.plots {
