@@ -34,10 +34,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             None => simulate(&system, &options)?,
         };
         println!(
-            "{label}: {:.0} frames/s ({:.2} ms/step; {:.1} CG iterations/step, {} factorisations, \
+            "{label}: {:.0} frames/s ({:.2} ms/step; frame median {:.2} ms = {:.0} fps, 95th \
+             percentile {:.2} ms, worst {:.1} ms; {:.1} CG iterations/step, {} factorisations, \
              setup {:.3} s, total {:.2} s); umbo {:.3} um",
             sim.frames_per_second,
             1e3 / sim.frames_per_second,
+            sim.frame_ms.median,
+            1e3 / sim.frame_ms.median,
+            sim.frame_ms.p95,
+            sim.frame_ms.max,
             sim.mean_cg_iterations,
             sim.factorisations,
             sim.setup_seconds,

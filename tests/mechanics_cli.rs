@@ -21,6 +21,9 @@ fn simulate_writes_the_umbo_trajectory() {
     ]);
     assert_eq!(code, 0, "{json}");
     assert!(json["frames_per_second"].as_f64().unwrap() > 0.0);
+    let frame = |k: &str| json["frame_ms"][k].as_f64().unwrap();
+    assert!(0.0 < frame("median") && frame("median") <= frame("p95"));
+    assert!(frame("p95") <= frame("max"), "{json}");
     let csv = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
     assert_eq!(rows[0], "time_s,umbo_medial_mm,x_mm,y_mm,z_mm");

@@ -106,6 +106,15 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
     );
     let _ = writeln!(
         text,
+        "frame time: median {:.2} ms ({:.0} frames per second), 95th percentile {:.2} ms, worst \
+         {:.2} ms (the steps that refresh the preconditioner as the load sets in)",
+        sim.frame_ms.median,
+        1e3 / sim.frame_ms.median.max(1e-9),
+        sim.frame_ms.p95,
+        sim.frame_ms.max
+    );
+    let _ = writeln!(
+        text,
         "umbo displacement at t = {:.3} s: {:.3} um (+ = medial)",
         args.steps as f64 * args.dt,
         last * 1e3
@@ -124,6 +133,7 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
         "steps": args.steps,
         "dt_s": args.dt,
         "frames_per_second": sim.frames_per_second,
+        "frame_ms": sim.frame_ms,
         "setup_seconds": sim.setup_seconds,
         "step_seconds": sim.step_seconds,
         "failed_elements": sim.failed_elements,

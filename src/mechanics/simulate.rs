@@ -13,11 +13,12 @@
 //! once, the matrix is assembled only to be factorised). So every step solves the current
 //! system to the CG tolerance (relative residual 1e-6); the stale factor only costs
 //! iterations, and when it is too stale (more than 2 iterations) it is refreshed at once and
-//! the step solved with it, as it is every `refactor_every` steps. (The matrix cannot simply
+//! the step solved with it, as it is every `refactor_every` steps; the next step then
+//! refreshes it before solving (while a load sets in, a factor one step old is stale again:
+//! this saves two solves and a product in each of those steps). (The matrix cannot simply
 //! be frozen at the rest shape: the eardrum is a membrane whose out-of-plane stiffness comes
 //! from its tension under load, absent at rest, and such an iteration diverges.) The ear-canal
-//! pressure
-//! is a follower load on the lateral eardrum face, evaluated at the current positions.
+//! pressure is a follower load on the lateral eardrum face, evaluated at the current positions.
 
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
@@ -84,12 +85,38 @@ pub struct Simulation {
     /// Wall time of the steps (s) and steps per second.
     pub step_seconds: f64,
     pub frames_per_second: f64,
+    /// Frame times (ms): the median (the sustained rate), the 95th percentile and the worst
+    /// (the steps that refresh the factor while a load sets in).
+    pub frame_ms: FrameTimes,
     /// Conjugate-gradient iterations, mean per step.
     pub mean_cg_iterations: f64,
     /// Preconditioner refreshes: scheduled ones plus those forced by a stale factor.
     pub factorisations: usize,
     /// Elements inverted or collapsed at the last step (0 for a sound simulation).
     pub failed_elements: usize,
+}
+
+/// Wall time of one step (ms), over the steps of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FrameTimes {
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl FrameTimes {
+    fn of(mut ms: Vec<f64>) -> Self {
+        ms.sort_by(f64::total_cmp);
+        let at = |q: f64| {
+            let i = (q * (ms.len().max(1) - 1) as f64).round() as usize;
+            ms.get(i).copied().unwrap_or(0.0)
+        };
+        FrameTimes {
+            median: at(0.5),
+            p95: at(0.95),
+            max: at(1.0),
+        }
+    }
 }
 
 /// A backward-Euler integrator with its matrix factorised once for one time step.
@@ -111,6 +138,10 @@ pub struct Simulator<'s> {
     rhs: Vec<f64>,
     cg_iterations: usize,
     refreshes: usize,
+    /// The last step found its factor stale: the matrix is changing fast (a load is setting
+    /// in), so the next step refreshes the factor before it solves rather than after two
+    /// wasted iterations.
+    refresh_next: bool,
 }
 
 impl<'s> Simulator<'s> {
@@ -159,6 +190,7 @@ impl<'s> Simulator<'s> {
             rhs: vec![0.0; 3 * n],
             cg_iterations: 0,
             refreshes: 0,
+            refresh_next: false,
         };
         sim.factorise()?;
         sim.refreshes = 1;
@@ -217,7 +249,7 @@ impl<'s> Simulator<'s> {
         self.operator
             .update(model, &self.x, &self.state)
             .map_err(MechanicsError::solve("step operator"))?;
-        if refactor {
+        if refactor || std::mem::take(&mut self.refresh_next) {
             self.refreshes += 1;
             self.factorise()?;
         }
@@ -269,6 +301,7 @@ impl<'s> Simulator<'s> {
                 // the preconditioner is too stale: refresh it and solve with it
                 self.cg_iterations += iterations;
                 self.refreshes += 1;
+                self.refresh_next = true;
                 self.factorise()?;
                 self.velocity.copy_from_slice(&self.rhs);
                 self.cholesky
@@ -335,9 +368,12 @@ pub fn simulate(
     frames.push(sim.frame(0.0));
     let t = std::time::Instant::now();
     let every = options.refactor_every.max(1);
+    let mut frame_ms = Vec::with_capacity(options.steps);
     for k in 1..=options.steps {
         let refactor = k > 1 && (k - 1) % every == 0;
+        let frame = std::time::Instant::now();
         sim.step(options.pressure_pa, options.umbo_force_un, refactor)?;
+        frame_ms.push(frame.elapsed().as_secs_f64() * 1e3);
         frames.push(sim.frame(k as f64 * options.dt));
     }
     let step_seconds = t.elapsed().as_secs_f64();
@@ -349,6 +385,7 @@ pub fn simulate(
         setup_seconds,
         step_seconds,
         frames_per_second: options.steps as f64 / step_seconds.max(1e-12),
+        frame_ms: FrameTimes::of(frame_ms),
         failed_elements: sim.state.failed_elements().len(),
         mean_cg_iterations: sim.cg_iterations as f64 / options.steps.max(1) as f64,
         factorisations: sim.refreshes,
