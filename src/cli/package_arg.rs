@@ -1,12 +1,12 @@
 //! The PACKAGE argument of `validate` and `simulate`: a run's patient package, checked whole
-//! first (as `otoatlas verify` does) so that no command computes on a half-written or altered
-//! package, read as the atlas it contains, and paired with the atlas it was registered from
-//! (identified by the SHA-256 in its manifest).
+//! first (as `otoatlas verify` does, which also reads the atlas it contains) so that no
+//! command computes on a half-written or altered package, and paired with the atlas it was
+//! registered from (identified by the SHA-256 in its manifest).
 
 use std::path::Path;
 
 use crate::Error;
-use crate::atlas::{Atlas, load_atlas, read_atlas};
+use crate::atlas::{Atlas, load_atlas};
 use crate::export::{Manifest, atlas_sha256, verify_package};
 
 /// A verified package: its registered atlas and its manifest.
@@ -18,24 +18,22 @@ pub struct Package {
 /// Verifies and reads the package in `dir`.
 pub fn open_package(dir: &Path) -> Result<Package, Error> {
     let report = verify_package(dir)?;
-    let manifest = match (report.passed(), report.manifest) {
-        (true, Some(m)) => m,
+    match (report.passed(), report.manifest, report.atlas) {
+        (true, Some(manifest), Some(atlas)) => Ok(Package { atlas, manifest }),
         _ => {
             let faults: Vec<String> = report
                 .faults
                 .iter()
                 .map(|f| format!("{} {}: {}", f.check, f.file, f.message))
                 .collect();
-            return Err(Error::Usage(format!(
+            Err(Error::Usage(format!(
                 "{}: not a whole patient package ({}); `otoatlas verify {}` lists the faults",
                 dir.display(),
                 faults.join("; "),
                 dir.display()
-            )));
+            )))
         }
-    };
-    let atlas = read_atlas(dir)?;
-    Ok(Package { atlas, manifest })
+    }
 }
 
 /// The atlas `package` was registered from: the folder `reference_dir`, or the embedded

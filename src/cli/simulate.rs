@@ -1,6 +1,6 @@
-//! `otoatlas simulate [PACKAGE]`: step a patient package or an atlas in time (backward Euler, one solve per step) under a
-//! static ear-canal pressure or an umbo force, print the frame rate and write the umbo
-//! trajectory.
+//! `otoatlas simulate [PACKAGE]`: step a patient package or an atlas in time (backward Euler,
+//! one solve per step) under a static ear-canal pressure or an umbo force, print the frame
+//! rate and write the umbo trajectory.
 
 use std::fmt::Write;
 use std::path::PathBuf;

@@ -62,27 +62,34 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
         .reference
         .as_deref()
         .filter(|r| r.as_os_str() != "default");
-    let validation = if let Some(dir) = &args.package {
-        let package = open_package(dir)?;
-        let reference = source_atlas(&package, reference_dir)?;
-        validate_package(&reference, package.atlas.nodes(), &options)?
-    } else {
-        let atlas = load_atlas(args.atlas.as_deref(), None)?;
-        match &args.reference {
-            None => validate_atlas(&atlas, &options)?,
-            Some(_) => {
-                let reference = load_atlas(reference_dir, None)?;
-                let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
-                    && reference.mesh.triangles == atlas.mesh.triangles;
-                if !same {
-                    return Err(Error::Usage(
-                        "--atlas and --reference must share one mesh (a package is its atlas \
-                         with moved nodes)"
-                            .into(),
-                    ));
-                }
-                validate_package(&reference, atlas.nodes(), &options)?
+    // the atlas to check, and the one it came from for the relative gates
+    let (atlas, reference) = match &args.package {
+        Some(dir) => {
+            let package = open_package(dir)?;
+            let reference = source_atlas(&package, reference_dir)?;
+            (package.atlas, Some(reference))
+        }
+        None => (
+            load_atlas(args.atlas.as_deref(), None)?,
+            args.reference
+                .as_ref()
+                .map(|_| load_atlas(reference_dir, None))
+                .transpose()?,
+        ),
+    };
+    let validation = match reference {
+        None => validate_atlas(&atlas, &options)?,
+        Some(reference) => {
+            let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
+                && reference.mesh.triangles == atlas.mesh.triangles;
+            if !same {
+                return Err(Error::Usage(
+                    "the atlas and its reference must share one mesh (a package is its atlas \
+                     with moved nodes)"
+                        .into(),
+                ));
             }
+            validate_package(&reference, atlas.nodes(), &options)?
         }
     };
     if let Some(dir) = &args.plots {

@@ -15,6 +15,7 @@ use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION};
 use super::scene::{SCENE, SCENE_MESH};
 use super::verify_scene::check_scene;
 use crate::Error;
+use crate::atlas::Atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, read_atlas};
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::io::gmsh::read_msh;
@@ -48,6 +49,8 @@ pub struct VerifyReport {
     pub package: PathBuf,
     /// The manifest, when it could be read.
     pub manifest: Option<Manifest>,
+    /// The package's atlas (atlas.json with mesh.vtu), when it could be read.
+    pub atlas: Option<Atlas>,
     /// Files whose hash was compared.
     pub files_checked: usize,
     pub faults: Vec<Fault>,
@@ -122,13 +125,14 @@ pub fn verify_package(dir: &Path) -> Result<VerifyReport, Error> {
     let mut report = VerifyReport {
         package: dir.to_path_buf(),
         manifest: manifest.clone(),
+        atlas: None,
         files_checked: 0,
         faults: Vec::new(),
     };
     if let Some(m) = &manifest {
         report.files_checked = check_files(m, &actual, &mut faults);
         check_fields(m, &mut faults);
-        check_content(dir, m, &mut faults);
+        report.atlas = check_content(dir, m, &mut faults);
     }
     report.faults = faults.0;
     Ok(report)
@@ -275,7 +279,8 @@ fn check_orientation(mesh: &VolumeMesh, file: &str, faults: &mut Faults) {
     }
 }
 
-fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) {
+/// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read.
+fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas> {
     let msh = read_msh(&dir.join(SCENE_MESH))
         .map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
         .ok();
@@ -305,4 +310,5 @@ fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) {
         Err(e) => faults.add("scene", SCENE, format!("cannot be read: {e}")),
         Ok(text) => check_scene(&text, msh.as_ref(), atlas.as_ref(), &m.files, faults),
     }
+    atlas
 }
