@@ -138,6 +138,14 @@ impl Config {
             "ingest.orientation_tolerance",
             self.ingest.orientation_tolerance,
         )?;
+        self.landmarks
+            .validate()
+            .map_err(|(field, value, expected)| ConfigError::Invalid {
+                path: path.to_path_buf(),
+                field,
+                value,
+                expected,
+            })?;
         let d = &self.deform;
         for (field, v) in [
             ("deform.search_range_mm", d.probe.search_range_mm),
@@ -196,6 +204,48 @@ mod tests {
         let msg = err.to_string();
         assert!(msg.contains("my.toml"), "{msg}");
         assert!(msg.contains("bogus_knob"), "{msg}");
+    }
+
+    #[test]
+    fn a_bad_landmark_band_is_rejected_by_name() {
+        for (from, to, key) in [
+            (
+                "umbo_isj_typical_mm = [2.1, 4.4]",
+                "umbo_isj_typical_mm = [4.4, 2.1]",
+                "landmarks.umbo_isj_typical_mm",
+            ),
+            (
+                "imj_isj_possible_mm = [3.5, 7.2]",
+                "imj_isj_possible_mm = [3.5, nan]",
+                "landmarks.imj_isj_possible_mm",
+            ),
+            (
+                "umbo_imj_possible_mm = [4.0, 8.0]",
+                "umbo_imj_possible_mm = [-inf, 8.0]",
+                "landmarks.umbo_imj_possible_mm",
+            ),
+            (
+                "umbo_imj_possible_mm = [4.0, 8.0]",
+                "umbo_imj_possible_mm = [5.0, 8.0]",
+                "landmarks.umbo_imj_possible_mm",
+            ),
+            (
+                "scale_ratio_range = [0.67, 1.5]",
+                "scale_ratio_range = [1.5, 0.67]",
+                "landmarks.scale_ratio_range",
+            ),
+            (
+                "swap_border_gain = 0.25",
+                "swap_border_gain = inf",
+                "landmarks.swap_border_gain",
+            ),
+        ] {
+            assert!(DEFAULT_TOML.contains(from), "{from}");
+            let text = DEFAULT_TOML.replace(from, to);
+            let err = Config::from_toml_str(&text, Path::new("p.toml")).unwrap_err();
+            let msg = err.to_string();
+            assert!(msg.contains(key) && msg.contains("p.toml"), "{to}: {msg}");
+        }
     }
 
     #[test]

@@ -83,8 +83,20 @@ pub fn run(args: &LandmarksArgs, config: Option<&Path>) -> Result<Report, Error>
             &sampler,
         )?
     };
-    check_landmarks(&input, Some(&sampler), None, &config.landmarks)?;
     let side = loaded.info.laterality.as_deref().and_then(Side::parse);
+    // the distances against the embedded atlas's (a mirror does not change them); a suspected
+    // swap is only warned about here: `run` asks the image
+    let atlas = crate::atlas::load_atlas(None, side)?;
+    let atlas_landmarks = atlas.landmark_positions(atlas.nodes());
+    let warnings = check_landmarks(
+        &input,
+        Some(&sampler),
+        Some(&atlas_landmarks),
+        &config.landmarks,
+    )?;
+    for warning in &warnings {
+        progress::log(format!("landmark warning: {warning}"));
+    }
     let (fcsv, json_path) = out_paths(args, &case);
     write_atomic(&fcsv, write_fcsv(&input).as_bytes())?;
     write_atomic(&json_path, write_json(&input, side).as_bytes())?;
@@ -102,6 +114,7 @@ pub fn run(args: &LandmarksArgs, config: Option<&Path>) -> Result<Report, Error>
             "incudomalleolar": input.incudomalleolar.coords.as_slice(),
             "incudostapedial": input.incudostapedial.coords.as_slice(),
         },
+        "warnings": warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
     });
     let text = format!("wrote {} and {}\n", fcsv.display(), json_path.display());
     Ok(Report { text, json })

@@ -30,7 +30,8 @@ use crate::pipeline::mechanics::validate_registered;
 use crate::register::atlas_fit::{deform_atlas, fit_landmarks, place};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
-    LandmarkFile, PromptInput, check_landmarks, prompt_landmarks, read_landmarks, write_json,
+    ImageCheck, LandmarkError, LandmarkFile, LandmarkWarning, PromptInput,
+    check_landmarks_on_image, prompt_landmarks, read_landmarks, write_json,
 };
 use crate::register::rigid::RigidFit;
 use crate::report::{Accuracy, CaseReportInput, case_report_html};
@@ -209,13 +210,31 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     let (side, side_source) = side_of(opts, &file, &loaded)?;
     let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
     let patient = file.landmarks;
-    let atlas_landmarks = atlas.landmark_positions(atlas.nodes());
-    check_landmarks(
-        &patient,
-        Some(&sampler),
-        Some(&atlas_landmarks),
-        &config.landmarks,
-    )?;
+    let image_check = ImageCheck {
+        atlas: &atlas,
+        sampler: &sampler,
+        step_mm: step,
+        probe: &config.deform.probe,
+        with_scale: config.rigid.with_scale,
+    };
+    let landmark_warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
+        .map_err(|e| {
+            // name the file to correct (none for landmarks typed at the prompt)
+            let path = match opts.from <= Stage::Landmarks {
+                true => opts.landmarks.as_ref().or(case.landmarks.as_ref()).cloned(),
+                false => Some(artefact_path(out, Stage::Landmarks)),
+            };
+            match path {
+                Some(path) => LandmarkError::InFile {
+                    path,
+                    source: Box::new(e),
+                },
+                None => e,
+            }
+        })?;
+    for warning in &landmark_warnings {
+        progress::log(format!("{}: landmark warning: {warning}", case.id));
+    }
     if opts.from <= Stage::Landmarks {
         write_atomic(
             &artefact_path(out, Stage::Landmarks),
@@ -391,6 +410,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         side_source,
         atlas: &atlas,
         fit: &fit,
+        landmark_warnings: &landmark_warnings,
         rigid_nodes: &placed,
         registered_nodes: &nodes,
         deform: &deform_json,
@@ -420,6 +440,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             "patient": points_json(&patient),
             "registered": points_json(&atlas.landmark_positions(&nodes)),
         },
+        "landmark_warnings": warnings_json(&landmark_warnings),
         "rigid": {
             "atlas_to_patient": fit.transform,
             "scale": fit.transform.scale,
@@ -473,6 +494,20 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         timings: stage_times,
         out: out.clone(),
     })
+}
+
+/// The landmark checks' warnings: each typed (`kind` and its figures) with its message.
+fn warnings_json(warnings: &[LandmarkWarning]) -> Value {
+    warnings
+        .iter()
+        .map(|w| {
+            let mut value = serde_json::to_value(w).unwrap_or_default();
+            if let Value::Object(map) = &mut value {
+                map.insert("message".into(), json!(w.to_string()));
+            }
+            value
+        })
+        .collect()
 }
 
 /// Per structure: the rigid-only and the registered surface distances, and the MASD

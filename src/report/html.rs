@@ -31,7 +31,7 @@ table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}\
 .figs{display:flex;flex-wrap:wrap;gap:12px}.figs figure{margin:0;width:min-content}\
 figcaption{font-size:12px;color:#555;text-align:center}.bad{color:#b00;font-weight:bold}\
-.ok{color:#070;font-weight:bold}.note{font-size:13px;color:#555}\
+.ok{color:#070;font-weight:bold}.note{font-size:13px;color:#555}.warn{color:#a55a00;font-weight:bold}\
 .swatch{display:inline-block;width:24px;height:4px;margin:0 6px 3px 16px}";
 
 impl Page {

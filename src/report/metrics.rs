@@ -1,6 +1,6 @@
 //! The parts of a case's `metrics.json` (as `run` writes it) that the reports read, typed:
-//! the per-structure surface distances of the rigid fit and of the registration, and the
-//! deformable stage's status and convergence history. Also the registration targets the
+//! the per-structure surface distances of the rigid fit and of the registration, the
+//! deformable stage's status and convergence history, and the landmark checks' warnings. Also the registration targets the
 //! reports compare against (mechanics-metrics.md §0.2, "proposed registration targets":
 //! MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle).
 
@@ -12,6 +12,7 @@ use serde_json::Value;
 use super::error::ReportError;
 use crate::atlas::Part;
 use crate::meshdev::SurfaceDistances;
+use crate::register::landmarks::LandmarkWarning;
 
 /// Target MASD per ossicle [mm] (mechanics-metrics.md §0.2).
 pub const MASD_TARGET_MM: f64 = 0.2;
@@ -122,6 +123,24 @@ pub fn parse_deform(deform: &Value, case: &str) -> Result<DeformSummary, ReportE
     })
 }
 
+/// The landmark checks' warnings as `metrics.json` holds them under `landmark_warnings` (each
+/// with its `kind`, its figures and a `message`); none when the field is absent (a run before
+/// the checks warned).
+pub fn parse_landmark_warnings(
+    metrics: &Value,
+    case: &str,
+) -> Result<Vec<LandmarkWarning>, ReportError> {
+    match metrics.get("landmark_warnings") {
+        None | Some(Value::Null) => Ok(Vec::new()),
+        Some(w) => parse(
+            w,
+            case,
+            "landmark_warnings",
+            "a list of {kind, ...figures, message} landmark warnings",
+        ),
+    }
+}
+
 /// Hand-made surface distances for the reports' tests: every field a different number
 /// (ASSD, RMS and the MeshDev mean are MASD + 0.001, 0.002, 0.003; HD and the MeshDev max are
 /// HD95 + 0.3 and + 0.4).
@@ -153,6 +172,20 @@ mod tests {
         assert_eq!(d.status, "inversion_guard");
         assert_eq!(d.message.as_deref(), Some("step refused"));
         assert_eq!(d.history[0].p99_update_mm, 0.1);
+        let warnings = json!({"landmark_warnings": [{"kind": "flat_triangle", "height_mm": 1.2,
+            "typical_min_mm": 1.5, "atlas_height_mm": 3.27, "message": "flat"}]});
+        assert_eq!(
+            parse_landmark_warnings(&warnings, "c1").unwrap(),
+            [LandmarkWarning::FlatTriangle {
+                height_mm: 1.2,
+                typical_min_mm: 1.5,
+                atlas_height_mm: Some(3.27)
+            }]
+        );
+        assert_eq!(parse_landmark_warnings(&json!({}), "c1").unwrap(), []);
+        let bad = json!({"landmark_warnings": [{"kind": "no_such_warning"}]});
+        let text = parse_landmark_warnings(&bad, "c1").unwrap_err().to_string();
+        assert!(text.contains("landmark_warnings"), "{text}");
         let err = parse_scores(&json!({"malleus": {"registered": 3}}), "c1").unwrap_err();
         let text = err.to_string();
         assert!(text.contains("c1") && text.contains("scores"), "{text}");

@@ -1,27 +1,307 @@
-//! Checks on the three landmarks before anything runs: each inside the image, the three not
-//! collinear, and their distances plausible against the atlas's (a swapped pair is detected
-//! and named). Each failure is a message with the numbers.
+//! Checks on the three landmarks before anything runs. Refused: a landmark outside the image,
+//! three nearly collinear landmarks, an overall size off the atlas's by more than the scale
+//! range, a distance outside what any middle ear has (its *possible* band), and a label swap
+//! that both the distances and the image confirm. Warned about, with the figures: a distance
+//! outside its *typical* band, a flat triangle, and a swap the distances suggest but the image
+//! does not confirm (or that no image could check).
+//!
+//! The bands are anatomical (docs/anatomy.md, "Landmark distance bands"), in mm, independent of
+//! the atlas: people's chains differ from the atlas's by far more than any one scale explains
+//! (five real chains have umbo-ISJ 2.4-2.9 mm where the atlas has 3.69 mm).
 //!
 //! Exchanging two labels keeps their own distance and exchanges the two distances to the third
-//! landmark, so a swap is visible here only when those two distances differ by more than the
-//! shape tolerance.
+//! landmark. The distances suggest a swap when the given labelling has a distance outside its
+//! typical band and the exchanged labelling has all three inside theirs. Where the two
+//! exchanged distances have overlapping typical bands (umbo-IMJ and IMJ-ISJ, that is umbo and
+//! ISJ exchanged) the distances can hardly tell; the image decides.
 
 use serde::{Deserialize, Serialize};
 
+use super::image_check::{ImageCheck, SwapEvidence};
 use super::{LandmarkError, LandmarkName, Landmarks};
 use crate::image::Sampler;
 
-/// Tolerances of the landmark checks (`[landmarks]` in pipeline.toml).
+/// Tolerances and anatomical bands of the landmark checks (`[landmarks]` in pipeline.toml).
+///
+/// Default bands (docs/anatomy.md has the derivation and the sources):
+///
+/// | distance | typical [mm] | possible [mm] |
+/// |---|---|---|
+/// | umbo-IMJ | 4.3-6.6 | 4.0-8.0 |
+/// | umbo-ISJ | 2.1-4.4 | 1.5-5.0 |
+/// | IMJ-ISJ | 4.0-5.5 | 3.5-7.2 |
+///
+/// *Typical*: what the five real chains measured for issue 20 and SOFA's chain span, and the
+/// atlas's triangle scaled by 0.9-1.1 (ossicle dimensions vary by about ±10 % at ±2 SD), each
+/// widened by 0.3 mm (a landmark is picked to about one 0.3 mm voxel).
+///
+/// *Possible*: bounds set by ossicle dimensions where one bone spans the distance. The umbo-IMJ
+/// distance runs along the malleus from the tip of the manubrium to the joint on the head: it
+/// is longer than the manubrium (4.47 mm, ±2 SD 4.03-5.03 mm over 53 CBCT scans; the JHU
+/// statistical shape model) and shorter than the whole malleus (mean lengths 7.2-8.05 mm in
+/// series of 40-94 bones; Godson, Mudhol, Vinayachandra), whose head rises above the joint's
+/// centre. The IMJ-ISJ distance runs along the incus from the joint face of its body to the
+/// lenticular process: shorter than the incus's greatest length (6.51 ± 0.32 mm, n = 23, +2 SD
+/// = 7.15 mm) and close to the long process (5.35 ± 0.25 mm, n = 23); the real chains and
+/// SOFA's are 0.25-1.05 mm shorter than the mean long process, so 3.5 mm leaves more than
+/// 1.3 mm below its -2 SD length. The umbo-ISJ distance spans two bones and depends on how the
+/// chain is articulated, which varies most between people (the IMJ angle is the second mode of
+/// incus shape variation in a 53-bone shape model; Omar); no study reports it, so its possible
+/// band is the typical band widened by 0.6 mm each way (about twice the ±2 SD spread of
+/// ossicle dimensions, ±10 %, at these lengths).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CheckConfig {
     /// Smallest height of the landmark triangle [mm]; below it the rigid fit is undetermined.
     pub min_triangle_height_mm: f64,
-    /// Allowed patient/atlas ratio of the overall landmark scale [unitless, min and max].
+    /// Below this smallest height [mm] the triangle is flat for a middle ear: the rigid fit's
+    /// rotation about its longest side is known only to about pick error / height (a warning).
+    pub typical_min_height_mm: f64,
+    /// Allowed patient/atlas ratio of the landmark triangle's perimeter [unitless, min and
+    /// max] (the perimeter does not change when labels are exchanged).
     pub scale_ratio_range: [f64; 2],
-    /// Largest relative deviation of one landmark distance from the atlas's after the overall
-    /// scale is taken out [fraction].
-    pub shape_tolerance: f64,
+    /// umbo-IMJ distance usual in real ears [mm, min and max]; outside it, a warning.
+    pub umbo_imj_typical_mm: [f64; 2],
+    /// umbo-IMJ distance any middle ear can have [mm, min and max]; outside it, refused.
+    pub umbo_imj_possible_mm: [f64; 2],
+    /// umbo-ISJ distance usual in real ears [mm, min and max].
+    pub umbo_isj_typical_mm: [f64; 2],
+    /// umbo-ISJ distance any middle ear can have [mm, min and max].
+    pub umbo_isj_possible_mm: [f64; 2],
+    /// IMJ-ISJ distance usual in real ears [mm, min and max].
+    pub imj_isj_typical_mm: [f64; 2],
+    /// IMJ-ISJ distance any middle ear can have [mm, min and max].
+    pub imj_isj_possible_mm: [f64; 2],
+    /// The image confirms a swap when the atlas placed by the exchanged labels finds a bone
+    /// border from at least this larger a fraction of its surface triangles, at a mean offset
+    /// no larger [fraction of the probed triangles].
+    pub swap_border_gain: f64,
+}
+
+/// One distance's bands [mm].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Band {
+    pub typical_mm: [f64; 2],
+    pub possible_mm: [f64; 2],
+}
+
+impl CheckConfig {
+    /// The bands of umbo-IMJ, umbo-ISJ, IMJ-ISJ, in that order.
+    pub fn bands(&self) -> [Band; 3] {
+        [
+            (self.umbo_imj_typical_mm, self.umbo_imj_possible_mm),
+            (self.umbo_isj_typical_mm, self.umbo_isj_possible_mm),
+            (self.imj_isj_typical_mm, self.imj_isj_possible_mm),
+        ]
+        .map(|(typical_mm, possible_mm)| Band {
+            typical_mm,
+            possible_mm,
+        })
+    }
+
+    /// Checks every knob: the key (under `landmarks.`), its value and what was expected.
+    pub fn validate(&self) -> Result<(), (&'static str, String, &'static str)> {
+        let positive = |key: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err((key, v.to_string(), "a finite number > 0"))
+            }
+        };
+        let range = |key: &'static str, [lo, hi]: [f64; 2]| {
+            if lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi {
+                Ok(())
+            } else {
+                Err((
+                    key,
+                    format!("[{lo}, {hi}]"),
+                    "[min, max] of finite numbers with 0 < min <= max",
+                ))
+            }
+        };
+        positive(
+            "landmarks.min_triangle_height_mm",
+            self.min_triangle_height_mm,
+        )?;
+        positive(
+            "landmarks.typical_min_height_mm",
+            self.typical_min_height_mm,
+        )?;
+        positive("landmarks.swap_border_gain", self.swap_border_gain)?;
+        range("landmarks.scale_ratio_range", self.scale_ratio_range)?;
+        for (typical_key, possible_key, t, p) in [
+            (
+                "landmarks.umbo_imj_typical_mm",
+                "landmarks.umbo_imj_possible_mm",
+                self.umbo_imj_typical_mm,
+                self.umbo_imj_possible_mm,
+            ),
+            (
+                "landmarks.umbo_isj_typical_mm",
+                "landmarks.umbo_isj_possible_mm",
+                self.umbo_isj_typical_mm,
+                self.umbo_isj_possible_mm,
+            ),
+            (
+                "landmarks.imj_isj_typical_mm",
+                "landmarks.imj_isj_possible_mm",
+                self.imj_isj_typical_mm,
+                self.imj_isj_possible_mm,
+            ),
+        ] {
+            range(typical_key, t)?;
+            range(possible_key, p)?;
+            if p[0] > t[0] || p[1] < t[1] {
+                return Err((
+                    possible_key,
+                    format!("[{}, {}]", p[0], p[1]),
+                    "a band containing the typical one",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Something unusual but possible about the landmarks: the case runs, the user is told.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum LandmarkWarning {
+    /// A distance outside its typical band (inside its possible band).
+    UnusualDistance {
+        /// "umbo-IMJ", "umbo-ISJ" or "IMJ-ISJ".
+        pair: String,
+        patient_mm: f64,
+        typical_mm: [f64; 2],
+        possible_mm: [f64; 2],
+        atlas_mm: Option<f64>,
+    },
+    /// The triangle's smallest height is below the typical one.
+    FlatTriangle {
+        height_mm: f64,
+        typical_min_mm: f64,
+        atlas_height_mm: Option<f64>,
+    },
+    /// Two labels may be exchanged, but only one of the distances and the image says so (or
+    /// there was no image to ask).
+    SuspectedSwap {
+        a: String,
+        b: String,
+        /// The distances suggest it: exchanged, every distance is in its typical band, as
+        /// given not.
+        by_distances: bool,
+        /// umbo-IMJ, umbo-ISJ, IMJ-ISJ as given and with `a` and `b` exchanged [mm].
+        given_mm: [f64; 3],
+        swapped_mm: [f64; 3],
+        atlas_mm: Option<[f64; 3]>,
+        /// The image's verdict, when there was an image.
+        image: Option<SwapEvidence>,
+    },
+}
+
+fn band_text([lo, hi]: [f64; 2]) -> String {
+    format!("{lo:.2}-{hi:.2} mm")
+}
+
+fn triple(d: &[f64; 3]) -> String {
+    format!("{:.2} / {:.2} / {:.2} mm", d[0], d[1], d[2])
+}
+
+fn border_text(e: &SwapEvidence) -> String {
+    format!(
+        "a bone border found from {:.0} % of the atlas's surface triangles at a mean |offset| of \
+         {:.2} mm with the labels exchanged, {:.0} % and {:.2} mm as given",
+        100.0 * e.swapped.found_fraction,
+        e.swapped.mean_abs_offset_mm,
+        100.0 * e.given.found_fraction,
+        e.given.mean_abs_offset_mm
+    )
+}
+
+impl std::fmt::Display for LandmarkWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LandmarkWarning::UnusualDistance {
+                pair,
+                patient_mm,
+                typical_mm,
+                possible_mm,
+                atlas_mm,
+            } => {
+                write!(
+                    f,
+                    "{pair} is {patient_mm:.2} mm, outside its typical band {} (possible {})",
+                    band_text(*typical_mm),
+                    band_text(*possible_mm)
+                )?;
+                if let Some(a) = atlas_mm {
+                    write!(f, "; the atlas has {a:.2} mm")?;
+                }
+                write!(f, ": unusual but possible, check the picks on the overlays")
+            }
+            LandmarkWarning::FlatTriangle {
+                height_mm,
+                typical_min_mm,
+                atlas_height_mm,
+            } => {
+                write!(
+                    f,
+                    "the landmark triangle is flat: its smallest height is {height_mm:.2} mm \
+                     (typically at least {typical_min_mm:.2} mm"
+                )?;
+                if let Some(a) = atlas_height_mm {
+                    write!(f, "; the atlas's is {a:.2} mm")?;
+                }
+                write!(
+                    f,
+                    "); the rigid fit's rotation about the longest side depends strongly on the picks"
+                )
+            }
+            LandmarkWarning::SuspectedSwap {
+                a,
+                b,
+                by_distances,
+                given_mm,
+                swapped_mm,
+                atlas_mm,
+                image,
+            } => {
+                let atlas = match atlas_mm {
+                    Some(d) => format!("; the atlas has {}", triple(d)),
+                    None => String::new(),
+                };
+                match (by_distances, image) {
+                    (true, None) => write!(
+                        f,
+                        "landmarks {a} and {b} may be swapped: exchanged, every distance is in \
+                         its typical band (umbo-IMJ / umbo-ISJ / IMJ-ISJ {} instead of {}{atlas}); \
+                         no image was checked, kept as given",
+                        triple(swapped_mm),
+                        triple(given_mm),
+                    ),
+                    (true, Some(e)) => write!(
+                        f,
+                        "landmarks {a} and {b} may be swapped: exchanged, every distance is in \
+                         its typical band (umbo-IMJ / umbo-ISJ / IMJ-ISJ {} instead of {}{atlas}), \
+                         but the image does not confirm it ({}); kept as given",
+                        triple(swapped_mm),
+                        triple(given_mm),
+                        border_text(e)
+                    ),
+                    (false, image) => write!(
+                        f,
+                        "landmarks {a} and {b} may be swapped: the atlas placed by the exchanged \
+                         labels fits the image's bone borders clearly better ({}), but the \
+                         distances cannot tell (umbo-IMJ / umbo-ISJ / IMJ-ISJ {} as given, {} \
+                         exchanged{atlas}); kept as given: check the labels on the overlays",
+                        image.as_ref().map(border_text).unwrap_or_default(),
+                        triple(given_mm),
+                        triple(swapped_mm),
+                    ),
+                }
+            }
+        }
+    }
 }
 
 const PAIRS: [(LandmarkName, LandmarkName, &str); 3] = [
@@ -42,30 +322,71 @@ const PAIRS: [(LandmarkName, LandmarkName, &str); 3] = [
     ),
 ];
 
+const SWAPS: [(LandmarkName, LandmarkName); 3] = [
+    (LandmarkName::Umbo, LandmarkName::Incudomalleolar),
+    (LandmarkName::Umbo, LandmarkName::Incudostapedial),
+    (LandmarkName::Incudomalleolar, LandmarkName::Incudostapedial),
+];
+
 fn distances(l: &Landmarks) -> [f64; 3] {
     PAIRS.map(|(a, b, _)| (l.get(a) - l.get(b)).norm())
 }
 
-/// Best overall scale and the worst relative residual of the three distances after it.
-fn shape_error(patient: &[f64; 3], atlas: &[f64; 3]) -> (f64, f64) {
-    let ratios: Vec<f64> = patient.iter().zip(atlas).map(|(p, a)| p / a).collect();
-    let scale = ratios.iter().sum::<f64>() / 3.0;
-    let worst = ratios
-        .iter()
-        .map(|r| (r / scale - 1.0).abs())
-        .fold(0.0, f64::max);
-    (scale, worst)
+/// The triangle's smallest height [mm]: twice its area over its longest side.
+fn smallest_height(l: &Landmarks) -> f64 {
+    let [a, b, c] = l.points();
+    let longest = distances(l).into_iter().fold(f64::MIN_POSITIVE, f64::max);
+    (b - a).cross(&(c - a)).norm() / longest
 }
 
-/// Runs every check that its inputs allow: the image checks with a sampler, the distance
-/// checks with the atlas's landmarks.
+fn within(d: f64, [lo, hi]: [f64; 2]) -> bool {
+    (lo..=hi).contains(&d)
+}
+
+fn swapped(l: &Landmarks, (x, y): (LandmarkName, LandmarkName)) -> Landmarks {
+    let mut pts = l.points();
+    pts.swap(x as usize, y as usize);
+    Landmarks::from_points(pts)
+}
+
+/// Runs every check its inputs allow: the image checks with a sampler, the distance checks
+/// with the atlas's landmarks. A swap the distances suggest is only warned about here: no
+/// image can confirm it (see [`check_landmarks_on_image`]). Returns the warnings.
 pub fn check_landmarks(
     landmarks: &Landmarks,
     image: Option<&Sampler>,
     atlas: Option<&Landmarks>,
     cfg: &CheckConfig,
-) -> Result<(), LandmarkError> {
-    if let Some(sampler) = image {
+) -> Result<Vec<LandmarkWarning>, LandmarkError> {
+    check(landmarks, image, atlas, None, cfg)
+}
+
+/// Every check, with the image asked about any swap the distances suggest: the atlas placed by
+/// the given and by the exchanged labels, probed for bone borders. A swap both confirm is
+/// refused; one only the distances suggest is a warning.
+pub fn check_landmarks_on_image(
+    landmarks: &Landmarks,
+    image: &ImageCheck,
+    cfg: &CheckConfig,
+) -> Result<Vec<LandmarkWarning>, LandmarkError> {
+    let atlas = image.atlas.landmark_positions(image.atlas.nodes());
+    check(
+        landmarks,
+        Some(image.sampler),
+        Some(&atlas),
+        Some(image),
+        cfg,
+    )
+}
+
+fn check(
+    landmarks: &Landmarks,
+    sampler: Option<&Sampler>,
+    atlas: Option<&Landmarks>,
+    image: Option<&ImageCheck>,
+    cfg: &CheckConfig,
+) -> Result<Vec<LandmarkWarning>, LandmarkError> {
+    if let Some(sampler) = sampler {
         for name in LandmarkName::ALL {
             let p = landmarks.get(name);
             if !sampler.contains(&p) {
@@ -83,78 +404,129 @@ pub fn check_landmarks(
             }
         }
     }
-    let d = distances(landmarks);
-    let [a, b, c] = landmarks.points();
-    let area2 = (b - a).cross(&(c - a)).norm();
-    let height = area2 / d.iter().copied().fold(f64::MIN_POSITIVE, f64::max);
+    let height = smallest_height(landmarks);
     if height < cfg.min_triangle_height_mm {
         return Err(LandmarkError::Collinear {
             height_mm: height,
             min_mm: cfg.min_triangle_height_mm,
         });
     }
-    let Some(atlas) = atlas else { return Ok(()) };
-    let da = distances(atlas);
-    let (scale, error) = shape_error(&d, &da);
-    if error > cfg.shape_tolerance {
-        // would exchanging two labels explain it?
-        let swaps = [
-            (LandmarkName::Umbo, LandmarkName::Incudomalleolar),
-            (LandmarkName::Umbo, LandmarkName::Incudostapedial),
-            (LandmarkName::Incudomalleolar, LandmarkName::Incudostapedial),
-        ];
-        let best = swaps
-            .iter()
-            .map(|&(x, y)| {
-                let mut pts = landmarks.points();
-                let (ix, iy) = (x as usize, y as usize);
-                pts.swap(ix, iy);
-                let (_, e) = shape_error(&distances(&Landmarks::from_points(pts)), &da);
-                (x, y, e)
-            })
-            .min_by(|p, q| p.2.total_cmp(&q.2));
-        if let Some((x, y, e)) = best
-            && e <= cfg.shape_tolerance
-            && e < 0.5 * error
-        {
+    let d = distances(landmarks);
+    let da = atlas.map(distances);
+    if let Some(da) = da {
+        let perimeter = d.iter().sum::<f64>();
+        let atlas_perimeter = da.iter().sum::<f64>();
+        let scale = perimeter / atlas_perimeter;
+        let [lo, hi] = cfg.scale_ratio_range;
+        if !(lo..=hi).contains(&scale) {
+            return Err(LandmarkError::Scale {
+                scale,
+                perimeter_mm: perimeter,
+                atlas_perimeter_mm: atlas_perimeter,
+                min: lo,
+                max: hi,
+            });
+        }
+    }
+    let bands = cfg.bands();
+    let all_typical = |d: &[f64; 3]| (0..3).all(|k| within(d[k], bands[k].typical_mm));
+    let mut warnings = Vec::new();
+
+    // exchanged labels: the distances suggest it when the given labelling is not typical and
+    // the exchanged one is; the image, when the atlas placed by the exchanged labels lies
+    // clearly better on the bone borders (asked for every exchange: where two exchanged
+    // distances have overlapping typical bands, the distances cannot tell)
+    let given_fit = image.and_then(|img| img.border_fit(landmarks));
+    for (x, y) in SWAPS {
+        let exchanged = swapped(landmarks, (x, y));
+        let ds = distances(&exchanged);
+        let by_distances = !all_typical(&d) && all_typical(&ds);
+        let evidence = match (image, given_fit) {
+            (Some(img), Some(given)) => img
+                .border_fit(&exchanged)
+                .map(|s| SwapEvidence::of(given, s, cfg.swap_border_gain)),
+            _ => None,
+        };
+        let by_image = evidence.is_some_and(|e| e.confirms_swap);
+        if let (true, Some(e)) = (by_distances, evidence.filter(|e| e.confirms_swap)) {
             return Err(LandmarkError::Swapped {
                 a: x.key(),
                 b: y.key(),
-                error: 100.0 * error,
-                swapped_error: 100.0 * e,
-                patient: d,
-                atlas: da,
+                given_mm: d,
+                swapped_mm: ds,
+                swapped_found: 100.0 * e.swapped.found_fraction,
+                swapped_offset_mm: e.swapped.mean_abs_offset_mm,
+                given_found: 100.0 * e.given.found_fraction,
+                given_offset_mm: e.given.mean_abs_offset_mm,
             });
         }
-        let k = (0..3)
-            .max_by(|&i, &j| {
-                ((d[i] / da[i] / scale) - 1.0)
-                    .abs()
-                    .total_cmp(&((d[j] / da[j] / scale) - 1.0).abs())
-            })
-            .unwrap_or(0);
-        return Err(LandmarkError::Implausible {
-            pair: PAIRS[k].2,
-            patient_mm: d[k],
-            atlas_mm: da[k],
-            ratio: d[k] / da[k],
-            min_ratio: scale * (1.0 - cfg.shape_tolerance),
-            max_ratio: scale * (1.0 + cfg.shape_tolerance),
+        if by_distances || by_image {
+            warnings.push(LandmarkWarning::SuspectedSwap {
+                a: x.key().into(),
+                b: y.key().into(),
+                by_distances,
+                given_mm: d,
+                swapped_mm: ds,
+                atlas_mm: da,
+                image: evidence,
+            });
+        }
+    }
+
+    for (k, band) in bands.iter().enumerate() {
+        if !within(d[k], band.possible_mm) {
+            let hint = warnings
+                .iter()
+                .find_map(|w| match w {
+                    LandmarkWarning::SuspectedSwap {
+                        a,
+                        b,
+                        by_distances: true,
+                        swapped_mm,
+                        image,
+                        ..
+                    } => Some(format!(
+                        "; with {a} and {b} exchanged every distance would be typical \
+                         (umbo-IMJ / umbo-ISJ / IMJ-ISJ {}){}",
+                        triple(swapped_mm),
+                        match image {
+                            Some(e) =>
+                                format!(", but the image does not confirm it ({})", border_text(e)),
+                            None => String::new(),
+                        }
+                    )),
+                    _ => None,
+                })
+                .unwrap_or_default();
+            return Err(LandmarkError::OutsideBand {
+                pair: PAIRS[k].2,
+                patient_mm: d[k],
+                min_mm: band.possible_mm[0],
+                max_mm: band.possible_mm[1],
+                atlas: da
+                    .map(|da| format!("; the atlas has {:.2} mm", da[k]))
+                    .unwrap_or_default(),
+                hint,
+            });
+        }
+        if !within(d[k], band.typical_mm) {
+            warnings.push(LandmarkWarning::UnusualDistance {
+                pair: PAIRS[k].2.into(),
+                patient_mm: d[k],
+                typical_mm: band.typical_mm,
+                possible_mm: band.possible_mm,
+                atlas_mm: da.map(|da| da[k]),
+            });
+        }
+    }
+    if height < cfg.typical_min_height_mm {
+        warnings.push(LandmarkWarning::FlatTriangle {
+            height_mm: height,
+            typical_min_mm: cfg.typical_min_height_mm,
+            atlas_height_mm: atlas.map(smallest_height),
         });
     }
-    let [lo, hi] = cfg.scale_ratio_range;
-    if !(lo..=hi).contains(&scale) {
-        let k = 2;
-        return Err(LandmarkError::Implausible {
-            pair: PAIRS[k].2,
-            patient_mm: d[k],
-            atlas_mm: da[k],
-            ratio: d[k] / da[k],
-            min_ratio: lo,
-            max_ratio: hi,
-        });
-    }
-    Ok(())
+    Ok(warnings)
 }
 
 #[cfg(test)]
@@ -162,70 +534,203 @@ mod tests {
     use super::*;
     use nalgebra::{Point3, Rotation3, Vector3};
 
+    /// The shipped configuration's `[landmarks]`.
     fn cfg() -> CheckConfig {
-        CheckConfig {
-            min_triangle_height_mm: 1.0,
-            scale_ratio_range: [0.7, 1.4],
-            shape_tolerance: 0.15,
-        }
+        crate::config::Config::default_config().unwrap().landmarks
     }
 
-    /// Landmarks with umbo-IMJ 6.75, umbo-ISJ 3.0, IMJ-ISJ 4.5 mm: every two distances differ
-    /// by 50 %, so every swap of two labels is visible in the distances. (A swap exchanges
-    /// two of the three distances; where those are alike, no distance check can see it.)
-    fn atlas() -> Landmarks {
-        Landmarks {
-            umbo: Point3::new(0.0, 0.0, 0.0),
-            incudomalleolar: Point3::new(0.0, 0.0, 6.75),
-            incudostapedial: Point3::new(-1.593_738, 0.0, 2.541_667),
-        }
-    }
-
-    fn moved(l: &Landmarks, scale: f64) -> Landmarks {
+    /// The triangle with umbo-IMJ `a`, umbo-ISJ `b`, IMJ-ISJ `c` [mm], turned and moved.
+    fn triangle(a: f64, b: f64, c: f64) -> Landmarks {
+        let x = (a * a + b * b - c * c) / (2.0 * a);
+        let local = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(a, 0.0, 0.0),
+            Point3::new(x, (b * b - x * x).sqrt(), 0.0),
+        ];
         let r = Rotation3::from_euler_angles(0.4, 1.0, -0.7);
         let t = Vector3::new(10.0, -20.0, 35.0);
-        Landmarks::from_points(l.points().map(|p| Point3::from(r * (p.coords * scale) + t)))
+        Landmarks::from_points(local.map(|p| Point3::from(r * p.coords + t)))
+    }
+
+    /// The atlas's triangle as issue 20 gives it.
+    fn atlas() -> Landmarks {
+        triangle(5.15, 3.69, 4.74)
+    }
+
+    fn check(l: &Landmarks) -> Result<Vec<LandmarkWarning>, LandmarkError> {
+        check_landmarks(l, None, Some(&atlas()), &cfg())
+    }
+
+    fn kinds(w: &[LandmarkWarning]) -> Vec<String> {
+        w.iter()
+            .map(|w| match w {
+                LandmarkWarning::UnusualDistance { pair, .. } => format!("unusual {pair}"),
+                LandmarkWarning::FlatTriangle { .. } => "flat".into(),
+                LandmarkWarning::SuspectedSwap { a, b, .. } => format!("swap {a} {b}"),
+            })
+            .collect()
     }
 
     #[test]
-    fn a_moved_and_scaled_atlas_passes() {
-        check_landmarks(&moved(&atlas(), 1.08), None, Some(&atlas()), &cfg()).unwrap();
+    fn the_atlas_passes_without_warning() {
+        assert_eq!(check(&atlas()).unwrap(), vec![]);
+        // the embedded atlas's own landmarks, on both sides
+        for side in [crate::ear::Side::Right, crate::ear::Side::Left] {
+            let a = crate::atlas::load_atlas(None, Some(side)).unwrap();
+            let own = a.landmark_positions(a.nodes());
+            assert_eq!(
+                check_landmarks(&own, None, Some(&own), &cfg()).unwrap(),
+                vec![]
+            );
+        }
     }
 
+    /// Issue 20: five real chains measure umbo-IMJ 5.2-6.3, umbo-ISJ 2.4-2.9, IMJ-ISJ 4.4-5.1
+    /// mm; SOFA's 5.49 / 3.32 / 4.30 mm. Every corner of that box passes; only the flattest
+    /// corners (smallest height under 1.5 mm) are warned about.
     #[test]
-    fn each_swapped_pair_is_named() {
-        for (x, y) in [(0, 1), (0, 2), (1, 2)] {
-            let mut pts = moved(&atlas(), 0.95).points();
-            pts.swap(x, y);
-            let err = check_landmarks(&Landmarks::from_points(pts), None, Some(&atlas()), &cfg())
-                .unwrap_err();
-            match err {
-                LandmarkError::Swapped { a, b, .. } => {
-                    assert_eq!(
-                        [a, b],
-                        [LandmarkName::ALL[x].key(), LandmarkName::ALL[y].key()]
-                    );
+    fn real_chains_pass() {
+        for a in [5.2, 6.3] {
+            for b in [2.4, 2.9] {
+                for c in [4.4, 5.1] {
+                    let l = triangle(a, b, c);
+                    let w = check(&l).unwrap_or_else(|e| panic!("{a} {b} {c}: {e}"));
+                    let expected: Vec<String> = match (a, b, c) {
+                        (6.3, 2.4, 4.4) => vec!["flat".into()],
+                        _ => vec![],
+                    };
+                    assert_eq!(kinds(&w), expected, "{a} {b} {c}");
                 }
-                other => panic!("swap {x}<->{y}: {other}"),
             }
+        }
+        assert_eq!(check(&triangle(5.49, 3.32, 4.30)).unwrap(), vec![]);
+        // the case issue 20 quotes as refused: umbo-ISJ 2.87 mm
+        assert_eq!(check(&triangle(5.6, 2.87, 4.6)).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn a_flat_triangle_is_a_warning_with_its_height() {
+        let w = check(&triangle(6.3, 2.4, 4.4)).unwrap();
+        match &w[..] {
+            [LandmarkWarning::FlatTriangle { height_mm, .. }] => {
+                assert!((height_mm - 1.213).abs() < 1e-3, "{height_mm}")
+            }
+            other => panic!("{other:?}"),
+        }
+        let text = w[0].to_string();
+        assert!(
+            text.contains("1.21 mm") && text.contains("3.27 mm"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn an_unusual_distance_is_a_warning_with_its_band_and_the_atlas() {
+        let w = check(&triangle(4.9, 1.93, 4.3)).unwrap();
+        assert_eq!(kinds(&w), ["unusual umbo-ISJ"]);
+        let text = w[0].to_string();
+        for needle in ["1.93 mm", "2.10-4.40 mm", "1.50-5.00 mm", "3.69 mm"] {
+            assert!(text.contains(needle), "{needle}: {text}");
         }
     }
 
     #[test]
-    fn collinear_and_implausible_scale_are_rejected() {
+    fn a_scale_off_by_1_6_is_refused() {
+        for s in [1.6, 1.0 / 1.6] {
+            let a = atlas().points();
+            let scaled = Landmarks::from_points(a.map(|p| Point3::from(p.coords * s)));
+            match check(&scaled) {
+                Err(LandmarkError::Scale { scale, .. }) => assert!((scale - s).abs() < 1e-9),
+                other => panic!("scale {s}: {other:?}"),
+            }
+        }
+        // 1.4 times is a large ear, not an error of units
+        let a = atlas().points();
+        let large = Landmarks::from_points(a.map(|p| Point3::from(p.coords * 1.4)));
+        assert!(!matches!(check(&large), Err(LandmarkError::Scale { .. })));
+    }
+
+    #[test]
+    fn collinear_landmarks_are_refused() {
         let line = Landmarks {
             umbo: Point3::new(0.0, 0.0, 0.0),
             incudomalleolar: Point3::new(0.0, 0.0, 6.0),
             incudostapedial: Point3::new(0.0, 0.3, 3.0),
         };
+        for atlas in [None, Some(&atlas())] {
+            assert!(matches!(
+                check_landmarks(&line, None, atlas, &cfg()),
+                Err(LandmarkError::Collinear { .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn a_distance_beyond_its_possible_band_is_refused() {
+        // IMJ-ISJ 7.6 mm: longer than any incus (scale 1.19, fine)
+        match check(&triangle(5.5, 3.0, 7.6)) {
+            Err(e @ LandmarkError::OutsideBand { .. }) => {
+                let text = e.to_string();
+                assert!(
+                    text.contains("IMJ-ISJ is 7.60 mm") && text.contains("3.50 to 7.20 mm"),
+                    "{text}"
+                );
+                assert!(!text.contains("exchanged"), "{text}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // umbo-ISJ 5.3 mm, also without the atlas
         assert!(matches!(
-            check_landmarks(&line, None, None, &cfg()),
-            Err(LandmarkError::Collinear { .. })
+            check_landmarks(&triangle(6.0, 5.3, 4.5), None, None, &cfg()),
+            Err(LandmarkError::OutsideBand {
+                pair: "umbo-ISJ",
+                ..
+            })
         ));
-        let huge = moved(&atlas(), 2.0);
-        assert!(matches!(
-            check_landmarks(&huge, None, Some(&atlas()), &cfg()),
-            Err(LandmarkError::Implausible { .. })
-        ));
+    }
+
+    /// Umbo and IMJ exchanged on the atlas: umbo-ISJ 4.74 and IMJ-ISJ 3.69 mm, both possible
+    /// but not typical; exchanged back, all typical. Without an image it is only a warning.
+    #[test]
+    fn a_swap_only_the_distances_suggest_is_a_warning() {
+        let mut pts = atlas().points();
+        pts.swap(0, 1);
+        let w = check(&Landmarks::from_points(pts)).unwrap();
+        assert_eq!(
+            kinds(&w),
+            [
+                "swap umbo incudomalleolar",
+                "unusual umbo-ISJ",
+                "unusual IMJ-ISJ"
+            ]
+        );
+        let text = w[0].to_string();
+        assert!(
+            text.contains("5.15 / 3.69 / 4.74 mm instead of 5.15 / 4.74 / 3.69 mm")
+                && text.contains("no image was checked"),
+            "{text}"
+        );
+    }
+
+    /// IMJ and ISJ exchanged on the atlas: umbo-IMJ 3.69 mm is shorter than any manubrium, so
+    /// the landmarks are refused, and the message names the swap.
+    #[test]
+    fn an_impossible_distance_names_the_swap_that_would_fix_it() {
+        let mut pts = atlas().points();
+        pts.swap(1, 2);
+        match check(&Landmarks::from_points(pts)) {
+            Err(
+                e @ LandmarkError::OutsideBand {
+                    pair: "umbo-IMJ", ..
+                },
+            ) => {
+                let text = e.to_string();
+                assert!(
+                    text.contains("with incudomalleolar and incudostapedial exchanged"),
+                    "{text}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

@@ -1,15 +1,17 @@
 //! The three landmarks of the method (umbo, incudomalleolar joint, incudostapedial joint) in
-//! LPS millimetres: names and their usual aliases, file formats, plausibility checks, and the
-//! interactive prompt.
+//! LPS millimetres: names and their usual aliases, file formats, plausibility checks (with the
+//! image's word on a suspected label swap), and the interactive prompt.
 
 mod checks;
 mod formats;
+mod image_check;
 mod prompt;
 
 use std::path::PathBuf;
 
-pub use checks::{CheckConfig, check_landmarks};
+pub use checks::{Band, CheckConfig, LandmarkWarning, check_landmarks, check_landmarks_on_image};
 pub use formats::{read_landmarks, write_fcsv, write_json, write_mrk_json};
+pub use image_check::{BorderFit, ImageCheck, SwapEvidence};
 
 pub use prompt::{PromptInput, prompt_landmarks};
 
@@ -72,26 +74,47 @@ pub enum LandmarkError {
     )]
     Collinear { height_mm: f64, min_mm: f64 },
     #[error(
-        "landmarks {a} and {b} look swapped: with them exchanged the distances match the atlas ({swapped_error:.0} % off instead of {error:.0} %); distances (mm) patient {patient:?}, atlas {atlas:?} (umbo-IMJ, umbo-ISJ, IMJ-ISJ)"
+        "the landmark triangle is {scale:.2} times the atlas's (perimeter {perimeter_mm:.2} mm, the atlas's {atlas_perimeter_mm:.2} mm; expected {min:.2} to {max:.2} times): check the units (mm) and the coordinate system of the landmark file"
+    )]
+    Scale {
+        scale: f64,
+        perimeter_mm: f64,
+        atlas_perimeter_mm: f64,
+        min: f64,
+        max: f64,
+    },
+    #[error(
+        "landmark distances do not look like a middle ear: {pair} is {patient_mm:.2} mm, outside what a middle ear can have ({min_mm:.2} to {max_mm:.2} mm, `landmarks.*_possible_mm` in the configuration){atlas}{hint}"
+    )]
+    OutsideBand {
+        pair: &'static str,
+        patient_mm: f64,
+        min_mm: f64,
+        max_mm: f64,
+        /// "; the atlas has N mm", or empty.
+        atlas: String,
+        /// A swap the distances suggest, or empty.
+        hint: String,
+    },
+    #[error(
+        "landmarks {a} and {b} are swapped: exchanged, every distance is in its typical band (umbo-IMJ / umbo-ISJ / IMJ-ISJ {swapped_mm:.2?} mm instead of {given_mm:.2?} mm), and the atlas placed by the exchanged labels lies on the image's bone borders (a border found from {swapped_found:.0} % of its surface triangles at a mean |offset| of {swapped_offset_mm:.2} mm, against {given_found:.0} % and {given_offset_mm:.2} mm as given); exchange {a} and {b} in the landmark file"
     )]
     Swapped {
         a: &'static str,
         b: &'static str,
-        error: f64,
-        swapped_error: f64,
-        patient: [f64; 3],
-        atlas: [f64; 3],
+        given_mm: [f64; 3],
+        swapped_mm: [f64; 3],
+        /// Percent of the probed triangles.
+        swapped_found: f64,
+        swapped_offset_mm: f64,
+        given_found: f64,
+        given_offset_mm: f64,
     },
-    #[error(
-        "landmark distances do not look like a middle ear: {pair} is {patient_mm:.2} mm, the atlas has {atlas_mm:.2} mm (ratio {ratio:.2}, expected {min_ratio:.2} to {max_ratio:.2})"
-    )]
-    Implausible {
-        pair: &'static str,
-        patient_mm: f64,
-        atlas_mm: f64,
-        ratio: f64,
-        min_ratio: f64,
-        max_ratio: f64,
+    #[error("{path}: {source}")]
+    InFile {
+        path: PathBuf,
+        #[source]
+        source: Box<LandmarkError>,
     },
     #[error(
         "no landmarks: give --landmarks FILE, put landmarks.fcsv/.mrk.json/.json/.csv in the case folder, or run `otoatlas landmarks CASE` on a terminal"

@@ -2,7 +2,7 @@
 //! accept or reject a registration. One self-contained file (charts as inline SVG, slices as
 //! inline PNG, no script, no network reference) with, in order: a verdict against the
 //! registration targets (mechanics-metrics.md §0.2), the case summary (image geometry, side,
-//! atlas, landmark residuals, rigid scale, deformable status, timings), the surface distances
+//! atlas, landmark residuals and warnings, rigid scale, deformable status, timings), the surface distances
 //! per structure (rigid fit and registration, definitions of §0.2), the slice overlays, the
 //! histograms of signed distances, the convergence curve of the deformable stage, and the
 //! package's mechanics against the atlas (verdict, transfer function and static-pressure charts).
@@ -33,6 +33,7 @@ use crate::ear::Side;
 use crate::image::{LoadedImage, Sampler};
 use crate::mechanics::Validation;
 use crate::mesh::TriMesh;
+use crate::register::landmarks::LandmarkWarning;
 use crate::register::rigid::RigidFit;
 
 /// What the accuracy sections can show.
@@ -64,6 +65,8 @@ pub struct CaseReportInput<'a> {
     pub side_source: &'a str,
     pub atlas: &'a Atlas,
     pub fit: &'a RigidFit,
+    /// What the landmark checks found unusual but possible (shown with the landmarks).
+    pub landmark_warnings: &'a [LandmarkWarning],
     /// Atlas nodes after the rigid fit and after the deformable registration.
     pub rigid_nodes: &'a [Point3<f64>],
     pub registered_nodes: &'a [Point3<f64>],
@@ -102,6 +105,17 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     let registered = surfaces(input.atlas, input.registered_nodes);
     let mut page = Page::new(&format!("otoatlas case report: {}", input.case_id));
     verdict(&mut page, &deform, scores.as_ref());
+    match input.landmark_warnings.len() {
+        0 => &mut page,
+        n => page.paragraph(
+            &format!(
+                "The landmarks are unusual but possible ({n} warning{}): see the landmarks in \
+                 the case summary and check the picks on the overlays.",
+                if n == 1 { "" } else { "s" }
+            ),
+            Some("warn"),
+        ),
+    };
     if let Some(v) = input.mechanics {
         let failed = v.verdict.failures().count();
         match failed {

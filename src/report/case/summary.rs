@@ -1,7 +1,7 @@
 //! The top of the case report: the verdicts a reader checks first (did the deformable stage
 //! converge, do the ossicles meet the registration targets of mechanics-metrics.md §0.2) and
 //! the case summary: image geometry, side and its source, atlas, landmark residuals of the
-//! rigid fit, rigid scale, deformable status and the time of each stage.
+//! rigid fit and the landmark checks' warnings, rigid scale, deformable status and the time of each stage.
 
 use std::collections::BTreeMap;
 
@@ -148,6 +148,9 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
         .collect();
     landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm)]);
     page.table(&["landmark", "rigid-fit residual (mm)"], &landmarks);
+    for warning in input.landmark_warnings {
+        page.paragraph(&format!("landmark warning: {warning}"), Some("warn"));
+    }
     let mut timings: Vec<Vec<String>> = input
         .timings
         .iter()

@@ -113,6 +113,15 @@ fn html_with(
     accuracy: Accuracy,
     mechanics: Option<&crate::mechanics::Validation>,
 ) -> String {
+    html_warned(f, accuracy, mechanics, &[])
+}
+
+fn html_warned(
+    f: &Fixture,
+    accuracy: Accuracy,
+    mechanics: Option<&crate::mechanics::Validation>,
+    landmark_warnings: &[LandmarkWarning],
+) -> String {
     let sampler = Sampler::new(&f.image.volume).unwrap();
     case_report_html(&CaseReportInput {
         case_id: "case-<7>",
@@ -122,6 +131,7 @@ fn html_with(
         side_source: "landmark file",
         atlas: &f.atlas,
         fit: &f.fit,
+        landmark_warnings,
         rigid_nodes: &f.rigid,
         registered_nodes: &f.registered,
         deform: &f.deform,
@@ -285,6 +295,37 @@ fn a_deformable_stage_that_stopped_early_is_flagged() {
         "<p class=\"bad\">The deformable registration did not converge (inversion_guard: \
          element 7 inverted): check the overlays.</p>"
     ));
+}
+
+#[test]
+fn landmark_warnings_are_shown_with_their_figures_and_flagged_at_the_top() {
+    let f = fixture();
+    let quiet = html(&f, Accuracy::NoSegmentation);
+    assert!(!quiet.contains("landmark warning"));
+    assert!(!quiet.contains("class=\"warn\""));
+    let warning = LandmarkWarning::UnusualDistance {
+        pair: "umbo-ISJ".into(),
+        patient_mm: 1.93,
+        typical_mm: [2.1, 4.4],
+        possible_mm: [1.5, 5.0],
+        atlas_mm: Some(3.69),
+    };
+    let html = html_warned(&f, Accuracy::NoSegmentation, None, &[warning]);
+    is_self_contained(&html);
+    let top = html
+        .find("<p class=\"warn\">The landmarks are unusual but possible (1 warning)")
+        .expect("verdict note");
+    let note = html
+        .find(
+            "<p class=\"warn\">landmark warning: umbo-ISJ is 1.93 mm, outside its typical band \
+             2.10-4.40 mm (possible 1.50-5.00 mm); the atlas has 3.69 mm",
+        )
+        .expect("note with the figures");
+    let table = html.find("<td>RMS</td>").unwrap();
+    assert!(
+        top < table && table < note,
+        "verdict first, note under the landmarks"
+    );
 }
 
 /// A package validation: the atlas's transfer function, and the package's with |H_V| halved
