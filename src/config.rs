@@ -37,6 +37,7 @@ pub struct Config {
     pub ingest: IngestConfig,
     pub landmarks: crate::register::landmarks::CheckConfig,
     pub rigid: RigidConfig,
+    pub articulate: crate::register::articulate::ArticulateConfig,
     pub deform: crate::register::deform::DeformConfig,
     pub validate: ValidateConfig,
 }
@@ -163,6 +164,14 @@ impl Config {
             ("deform.neighbour_tolerance_mm", d.neighbour_tolerance_mm),
             ("deform.eardrum_offset_weight", d.eardrum_offset_weight),
             ("deform.tolerance_mm", d.tolerance_mm),
+            ("articulate.joint_weight", self.articulate.joint_weight),
+            ("articulate.damping", self.articulate.damping),
+            ("articulate.prior", self.articulate.prior),
+            (
+                "articulate.search_range_mm",
+                self.articulate.search_range_mm,
+            ),
+            ("articulate.tolerance_mm", self.articulate.tolerance_mm),
         ] {
             positive(field, v)?;
         }

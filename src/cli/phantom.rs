@@ -8,12 +8,14 @@ use clap::Args;
 use serde_json::json;
 
 use super::Report;
-use crate::phantom::{PhantomOptions, generate_case, write_case};
+use crate::phantom::{
+    ChainAnatomy, PhantomError, PhantomOptions, generate_case, generate_chain_case, write_case,
+};
 use crate::register::Side;
 use crate::{Error, progress};
 
 /// Make synthetic temporal-bone CBCT cases (DICOM + NIfTI, landmarks, true surfaces and label
-/// map, truth.json) from seeded variations of the atlas.
+/// map, truth.json) from seeded variations of the atlas, or around a real ossicular chain.
 #[derive(Debug, Args)]
 #[command(
     after_help = "Case k (1-based) is OUT/case-00k, made from seed S + k - 1; the same
@@ -21,7 +23,13 @@ seed always gives byte-identical files.
 
 Examples:
   otoatlas phantom --out sample_cases --cases 3 --seed 2026
-  otoatlas phantom --out /tmp/cases --cases 1 --seed 7 --spacing 0.2 --side left --artefacts"
+  otoatlas phantom --out /tmp/cases --cases 1 --seed 7 --spacing 0.2 --side left --artefacts
+  otoatlas phantom --out real --cases 4 --seed 1 --anatomy CHAIN_DIR --blur 0.3
+
+--anatomy CHAIN_DIR holds malleus, incus and stapes surfaces (or one fused chain.ply;
+.ply, .stl or .obj, in the folder or its surfaces/) and a landmark file that says the side
+(landmarks.json); the chain is the truth, mirrored when the side drawn or asked for is the
+other one, and the eardrum, canal, cavity and oval window come from the atlas around it."
 )]
 pub struct PhantomArgs {
     /// Folder the case folders are written into (created if needed).
@@ -45,6 +53,12 @@ pub struct PhantomArgs {
     /// The ear's side; drawn per case when absent.
     #[arg(long, value_enum)]
     pub side: Option<Side>,
+    /// Point-spread function FWHM in mm (default 0.25).
+    #[arg(long, value_name = "MM")]
+    pub blur: Option<f64>,
+    /// A real ossicular chain (surfaces and landmarks) to image instead of the atlas.
+    #[arg(long, value_name = "CHAIN_DIR")]
+    pub anatomy: Option<PathBuf>,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -70,8 +84,15 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
         noise_sd_hu: args.noise,
         artefacts: args.artefacts,
         side: args.side,
+        blur_mm: args.blur,
     };
     options.check()?;
+    let chain = args
+        .anatomy
+        .as_deref()
+        .map(ChainAnatomy::load)
+        .transpose()
+        .map_err(PhantomError::from)?;
     check_writable(&args.out)?;
     let bar = progress::Progress::new("phantom", u64::from(args.cases));
     let mut text = String::new();
@@ -79,7 +100,10 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
     for k in 1..=u64::from(args.cases) {
         let start = Instant::now();
         let seed = args.seed.wrapping_add(k - 1);
-        let case = generate_case(seed, &options)?;
+        let case = match &chain {
+            Some(chain) => generate_chain_case(seed, &options, chain)?,
+            None => generate_case(seed, &options)?,
+        };
         let path = write_case(&args.out.join(format!("case-{k:03}")), &case)?;
         let seconds = start.elapsed().as_secs_f64();
         let t = &case.truth;

@@ -14,7 +14,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::imaging::{Grid, ImagingParams, render};
-use super::patient::PatientAnatomy;
+use super::mesh_chain::{ChainAnatomy, ChainError, MeshChain};
+use super::patient::{Chain, PatientAnatomy};
 use super::patient_field::{PatientField, label_map};
 use super::scene::{CavityParams, EarScene, TissueLevels};
 use super::truth::{
@@ -50,6 +51,9 @@ pub struct PhantomOptions {
     pub artefacts: bool,
     /// The ear's side; drawn when absent.
     pub side: Option<Side>,
+    /// Full width at half maximum of the point-spread function [mm]; the imaging default
+    /// (0.25 mm) when absent.
+    pub blur_mm: Option<f64>,
 }
 
 /// Errors making a phantom.
@@ -59,6 +63,10 @@ pub enum PhantomError {
     Spacing(f64),
     #[error("--noise {0} HU: expected a finite value from 0 to 1000 HU")]
     Noise(f64),
+    #[error("--blur {0} mm: expected a finite value from 0 to 1 mm")]
+    Blur(f64),
+    #[error(transparent)]
+    Chain(#[from] ChainError),
     #[error("phantom seed {seed}: the varied anatomy is invalid: {source}")]
     Anatomy {
         seed: u64,
@@ -80,6 +88,11 @@ impl PhantomOptions {
         {
             return Err(PhantomError::Noise(n));
         }
+        if let Some(b) = self.blur_mm
+            && !(b.is_finite() && (0.0..=1.0).contains(&b))
+        {
+            return Err(PhantomError::Blur(b));
+        }
         Ok(())
     }
 }
@@ -90,7 +103,8 @@ pub struct PhantomCase {
     pub image: Volume,
     /// Label map on the image grid (see `DEFAULT_LABELS`).
     pub labels: Vec<u8>,
-    /// True surfaces in patient space, named malleus, incus, stapes, eardrum.
+    /// True surfaces in patient space, named malleus, incus, stapes (or chain, for a fused
+    /// real chain), eardrum.
     pub surfaces: Vec<(&'static str, TriMesh)>,
     /// The landmarks as a reader would pick them (with pick noise).
     pub picked: Landmarks,
@@ -197,28 +211,16 @@ fn field_of_view(points: impl Iterator<Item = Point3<f64>>, spacing: f64) -> Gri
     }
 }
 
-/// Generates the case of `seed`.
+/// Generates the case of `seed` from the atlas anatomy.
 pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase, PhantomError> {
     options.check()?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let drawn_side = if rng.random::<bool>() {
-        Side::Left
-    } else {
-        Side::Right
-    };
-    let side = options.side.unwrap_or(drawn_side);
-    let drawn_spacing =
-        (uniform(&mut rng, SPACING_RANGE_MM.0, SPACING_RANGE_MM.1) * 1000.0).round() / 1000.0;
-    let spacing = options.spacing_mm.unwrap_or(drawn_spacing);
+    let (side, spacing) = draw_side_and_spacing(&mut rng, options);
     let invalid = |source| PhantomError::Anatomy { seed, source };
-    let right = Anatomy::default_right().map_err(invalid)?;
-    let base = match side {
-        Side::Right => right.spec().clone(),
-        Side::Left => right.spec().mirrored(),
-    };
-    let motions = draw_motions(&base, &mut rng);
+    let base = side_anatomy(side).map_err(invalid)?;
+    let motions = draw_motions(base.spec(), &mut rng);
     let anatomy = Anatomy::from_spec(
-        apply_motions(&base, &motions),
+        apply_motions(base.spec(), &motions),
         &format!("<phantom seed {seed}>"),
     )
     .map_err(invalid)?;
@@ -229,87 +231,212 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
         rotation: uniform_rotation(&mut rng),
         translation: Vector3::from_fn(|_, _| uniform(&mut rng, -60.0, 60.0)),
     };
-    let cavity = CavityParams {
-        wall_phase: uniform(&mut rng, 0.0, std::f64::consts::TAU),
-        ..CavityParams::default()
-    };
+    let cavity = draw_cavity(&mut rng);
     let imaging_seed: u64 = rng.random();
     let exact_atlas = anatomy.landmarks();
     let patient = PatientAnatomy::new(anatomy, detail);
-
-    // truth surfaces, then the field of view around them
     let [m, i, s] = ossicle_surfaces(&patient);
-    let drum = eardrum_surface(patient.anatomy().eardrum());
-    let surfaces: Vec<(&'static str, TriMesh)> = [
-        ("malleus", m),
-        ("incus", i),
-        ("stapes", s),
-        ("eardrum", drum),
-    ]
-    .into_iter()
-    .map(|(n, mesh)| (n, to_patient(&mesh, &warp)))
-    .collect();
-    let grid = field_of_view(
-        surfaces
-            .iter()
-            .flat_map(|(_, m)| m.vertices.iter().copied()),
-        spacing,
-    );
-
-    let mut imaging = ImagingParams {
-        supersample: SUPERSAMPLE,
-        ..ImagingParams::clean(imaging_seed)
-    };
-    if let Some(noise) = options.noise_sd_hu {
-        imaging.noise_sd_hu = noise;
-    }
-    if options.artefacts {
-        imaging.cupping_hu = 80.0;
-        imaging.rings = 3;
-        imaging.ring_amplitude_hu = 40.0;
-        imaging.streaks = 2;
-        imaging.streak_amplitude_hu = 120.0;
-    }
-    let levels = TissueLevels::default();
-    let scene = EarScene::new(&patient, levels.clone(), cavity.clone());
-    let field = PatientField { scene, warp: &warp };
-    let image = render(&field, &grid, &imaging);
-    let labels = label_map(&patient, &warp, &grid);
-
-    let exact = Landmarks::from_points(exact_atlas.points().map(|p| warp.to_patient(&p)));
-    let picked = Landmarks::from_points(exact.points().map(|p| pick(&mut rng, &p)));
-    let truth = Truth {
-        generator: format!("otoatlas phantom {}", env!("CARGO_PKG_VERSION")),
+    let scene = EarScene::new(&patient, TissueLevels::default(), cavity.clone());
+    let case = Imaged {
         seed,
         side,
-        landmarks: LandmarkRecord::from(&exact),
-        landmarks_picked: LandmarkRecord::from(&picked),
-        pick_noise_sd_mm: PICK_NOISE_MM,
-        pose: PoseRecord::from(&warp),
-        ossicle_motions: motions,
-        deformation: deformation_record(&warp, &grid),
-        shape_detail: patient.detail().clone(),
-        image: GridRecord {
-            dims: grid.dims,
-            spacing_mm: grid.spacing,
-            origin: grid.origin.into(),
-            direction: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        },
-        imaging,
-        tissue_levels: levels,
+        spacing,
+        chain: &patient,
+        scene,
+        bones: vec![("malleus", m), ("incus", i), ("stapes", s)],
+        exact_atlas,
+        warp,
         cavity,
-        labels: DEFAULT_LABELS
-            .iter()
-            .map(|(l, n)| (*l, n.to_string()))
-            .collect(),
+        imaging_seed,
     };
-    Ok(PhantomCase {
-        truth,
-        image,
-        labels,
-        surfaces,
-        picked,
-    })
+    let mut made = case.image(options, &mut rng);
+    made.truth.ossicle_motions = motions;
+    made.truth.shape_detail = patient.detail().clone();
+    Ok(made)
+}
+
+/// Generates the case of `seed` whose ossicles are the real `chain` (mirrored to the side
+/// drawn or asked for): no ossicle motions, shape detail, scale or deformation of its own (its
+/// size is its own), only pose, side, imaging and pick noise are drawn.
+pub fn generate_chain_case(
+    seed: u64,
+    options: &PhantomOptions,
+    chain: &ChainAnatomy,
+) -> Result<PhantomCase, PhantomError> {
+    options.check()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (side, spacing) = draw_side_and_spacing(&mut rng, options);
+    let invalid = |source| PhantomError::Anatomy { seed, source };
+    let mirrored = side != chain.side;
+    let chain = if mirrored {
+        chain.mirrored()
+    } else {
+        chain.clone()
+    };
+    let placed = MeshChain::place(&chain, side_anatomy(side).map_err(invalid)?, mirrored)?;
+    let warp = PatientWarp {
+        scale: placed.placement().atlas_to_chain.scale,
+        deformation: Deformation { modes: Vec::new() },
+        rotation: uniform_rotation(&mut rng),
+        translation: Vector3::from_fn(|_, _| uniform(&mut rng, -60.0, 60.0)),
+    };
+    let cavity = draw_cavity(&mut rng);
+    let imaging_seed: u64 = rng.random();
+    let scene = EarScene::new(&placed, TissueLevels::default(), cavity.clone())
+        .with_footplate(placed.footplate().clone());
+    let case = Imaged {
+        seed,
+        side,
+        spacing,
+        chain: &placed,
+        scene,
+        bones: placed
+            .meshes()
+            .iter()
+            .map(|(k, m)| (k.name(), m.clone()))
+            .collect(),
+        exact_atlas: placed.landmarks(),
+        warp,
+        cavity,
+        imaging_seed,
+    };
+    let mut made = case.image(options, &mut rng);
+    if placed.is_fused() {
+        made.truth.labels = vec![
+            (DEFAULT_LABELS[0].0, "chain".into()),
+            (DEFAULT_LABELS[3].0, DEFAULT_LABELS[3].1.into()),
+        ];
+    }
+    made.truth.anatomy = Some(placed.placement().clone());
+    Ok(made)
+}
+
+fn draw_side_and_spacing(rng: &mut ChaCha8Rng, options: &PhantomOptions) -> (Side, f64) {
+    let drawn_side = if rng.random::<bool>() {
+        Side::Left
+    } else {
+        Side::Right
+    };
+    let drawn_spacing =
+        (uniform(rng, SPACING_RANGE_MM.0, SPACING_RANGE_MM.1) * 1000.0).round() / 1000.0;
+    (
+        options.side.unwrap_or(drawn_side),
+        options.spacing_mm.unwrap_or(drawn_spacing),
+    )
+}
+
+/// The atlas anatomy on `side`.
+fn side_anatomy(side: Side) -> Result<Anatomy, AnatomyError> {
+    let right = Anatomy::default_right()?;
+    match side {
+        Side::Right => Ok(right),
+        Side::Left => Anatomy::from_spec(right.spec().mirrored(), "<atlas mirrored to left>"),
+    }
+}
+
+fn draw_cavity(rng: &mut ChaCha8Rng) -> CavityParams {
+    CavityParams {
+        wall_phase: uniform(rng, 0.0, std::f64::consts::TAU),
+        ..CavityParams::default()
+    }
+}
+
+/// A patient ready to image: its chain and scene in the atlas frame, the true bone surfaces
+/// there, and the warp into the scanner.
+struct Imaged<'a> {
+    seed: u64,
+    side: Side,
+    spacing: f64,
+    chain: &'a dyn Chain,
+    scene: EarScene<'a>,
+    bones: Vec<(&'static str, TriMesh)>,
+    exact_atlas: Landmarks,
+    warp: PatientWarp,
+    cavity: CavityParams,
+    imaging_seed: u64,
+}
+
+impl Imaged<'_> {
+    /// Renders the image and the label map, picks the landmarks, and writes the truth record
+    /// (without the atlas-specific motions, detail and chain placement).
+    fn image(self, options: &PhantomOptions, rng: &mut ChaCha8Rng) -> PhantomCase {
+        let warp = &self.warp;
+        // truth surfaces, then the field of view around them
+        let drum = eardrum_surface(self.chain.anatomy().eardrum());
+        let surfaces: Vec<(&'static str, TriMesh)> = self
+            .bones
+            .into_iter()
+            .chain(std::iter::once(("eardrum", drum)))
+            .map(|(n, mesh)| (n, to_patient(&mesh, warp)))
+            .collect();
+        let grid = field_of_view(
+            surfaces
+                .iter()
+                .flat_map(|(_, m)| m.vertices.iter().copied()),
+            self.spacing,
+        );
+
+        let mut imaging = ImagingParams {
+            supersample: SUPERSAMPLE,
+            ..ImagingParams::clean(self.imaging_seed)
+        };
+        if let Some(noise) = options.noise_sd_hu {
+            imaging.noise_sd_hu = noise;
+        }
+        if let Some(blur) = options.blur_mm {
+            imaging.psf_fwhm_mm = blur;
+        }
+        if options.artefacts {
+            imaging.cupping_hu = 80.0;
+            imaging.rings = 3;
+            imaging.ring_amplitude_hu = 40.0;
+            imaging.streaks = 2;
+            imaging.streak_amplitude_hu = 120.0;
+        }
+        let levels = self.scene.levels().clone();
+        let field = PatientField {
+            scene: self.scene,
+            warp,
+        };
+        let image = render(&field, &grid, &imaging);
+        let labels = label_map(self.chain, warp, &grid);
+
+        let exact = Landmarks::from_points(self.exact_atlas.points().map(|p| warp.to_patient(&p)));
+        let picked = Landmarks::from_points(exact.points().map(|p| pick(rng, &p)));
+        let truth = Truth {
+            generator: format!("otoatlas phantom {}", env!("CARGO_PKG_VERSION")),
+            seed: self.seed,
+            side: self.side,
+            anatomy: None,
+            landmarks: LandmarkRecord::from(&exact),
+            landmarks_picked: LandmarkRecord::from(&picked),
+            pick_noise_sd_mm: PICK_NOISE_MM,
+            pose: PoseRecord::from(warp),
+            ossicle_motions: Vec::new(),
+            deformation: deformation_record(warp, &grid),
+            shape_detail: ShapeDetail::default(),
+            image: GridRecord {
+                dims: grid.dims,
+                spacing_mm: grid.spacing,
+                origin: grid.origin.into(),
+                direction: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            },
+            imaging,
+            tissue_levels: levels,
+            cavity: self.cavity,
+            labels: DEFAULT_LABELS
+                .iter()
+                .map(|(l, n)| (*l, n.to_string()))
+                .collect(),
+        };
+        PhantomCase {
+            truth,
+            image,
+            labels,
+            surfaces,
+            picked,
+        }
+    }
 }
 
 /// The deformation's record, with its largest displacement and smallest Jacobian determinant

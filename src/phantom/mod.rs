@@ -1,11 +1,13 @@
 //! Synthetic CBCT cases with known truth: the atlas anatomy varied per patient (ossicle
-//! motions, shape detail, scale, smooth deformation, pose, side), imaged by a cone-beam CT
-//! model, and written as case folders with their ground truth. See docs/phantom.md.
+//! motions, shape detail, scale, smooth deformation, pose, side), or a real chain given as
+//! surfaces (`mesh_chain`), imaged by a cone-beam CT model, and written as case folders with
+//! their ground truth. See docs/phantom.md.
 
 pub mod case_writer;
 pub mod drum;
 pub mod generator;
 pub mod imaging;
+pub mod mesh_chain;
 pub mod patient;
 pub mod patient_field;
 pub mod scene;
@@ -14,4 +16,7 @@ pub mod variability;
 pub mod warp;
 
 pub use case_writer::write_case;
-pub use generator::{PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case};
+pub use generator::{
+    PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case, generate_chain_case,
+};
+pub use mesh_chain::{ChainAnatomy, ChainError};

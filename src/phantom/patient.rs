@@ -36,28 +36,48 @@ pub struct PatientAnatomy {
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy)]
-struct Aabb {
+pub(crate) struct Aabb {
     lo: Vector3<f64>,
     hi: Vector3<f64>,
 }
 
 impl Aabb {
-    fn empty() -> Aabb {
+    pub(crate) fn empty() -> Aabb {
         Aabb {
             lo: Vector3::from_element(f64::INFINITY),
             hi: Vector3::from_element(f64::NEG_INFINITY),
         }
     }
 
-    fn add(&mut self, p: &Vector3<f64>, r: f64) {
+    pub(crate) fn add(&mut self, p: &Vector3<f64>, r: f64) {
         self.lo = self.lo.inf(&p.add_scalar(-r));
         self.hi = self.hi.sup(&p.add_scalar(r));
     }
 
     /// Distance from `p` to the box (0 inside).
     #[inline]
-    fn distance(&self, p: &Point3<f64>) -> f64 {
+    pub(crate) fn distance(&self, p: &Point3<f64>) -> f64 {
         Vector3::from_fn(|c, _| (self.lo[c] - p[c]).max(p[c] - self.hi[c]).max(0.0)).norm()
+    }
+}
+
+/// An ossicular chain the tissue field can image: its signed distances at a point, and the
+/// atlas anatomy that supplies what the chain itself lacks (eardrum, footplate frame,
+/// ligaments and tendons), in the same frame.
+pub trait Chain: Sync {
+    /// Every distance of the chain at `p` (see [`PatientAnatomy::distances`] for `far_mm`).
+    fn distances(&self, p: &Point3<f64>, far_mm: f64) -> ChainDistances;
+    /// The anatomy around the chain.
+    fn anatomy(&self) -> &Anatomy;
+}
+
+impl Chain for PatientAnatomy {
+    fn distances(&self, p: &Point3<f64>, far_mm: f64) -> ChainDistances {
+        PatientAnatomy::distances(self, p, far_mm)
+    }
+
+    fn anatomy(&self) -> &Anatomy {
+        &self.anatomy
     }
 }
 
@@ -204,17 +224,7 @@ impl PatientAnatomy {
             let d = b.distance(p);
             if d > far_mm { d } else { exact() }
         };
-        let bands = self
-            .band_boxes
-            .iter()
-            .map(|(r, b)| {
-                near(b, &|| {
-                    self.anatomy
-                        .band(*r)
-                        .map_or(f64::INFINITY, |t| t.distance(p))
-                })
-            })
-            .fold(f64::INFINITY, f64::min);
+        let bands = self.bands_distance(p, far_mm);
         let mut bones = [0.0; 3];
         for (k, o) in Ossicle::ALL.iter().enumerate() {
             bones[k] = near(&self.bone_boxes[k], &|| self.bone_distance(*o, p));
@@ -224,6 +234,24 @@ impl PatientAnatomy {
             joints: near(&self.joint_box, &|| self.joints_distance(p)),
             bands,
         }
+    }
+
+    /// Signed distance to the union of the ligaments and tendons (a band farther than
+    /// `far_mm` from its box is represented by the box distance).
+    pub fn bands_distance(&self, p: &Point3<f64>, far_mm: f64) -> f64 {
+        self.band_boxes
+            .iter()
+            .map(|(r, b)| {
+                let d = b.distance(p);
+                if d > far_mm {
+                    d
+                } else {
+                    self.anatomy
+                        .band(*r)
+                        .map_or(f64::INFINITY, |t| t.distance(p))
+                }
+            })
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// Signed distance to the union of the two joints.

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use super::drum::drum_position;
 use super::imaging::{FieldSample, Grid, TissueField};
-use super::patient::{ChainTissue, PatientAnatomy};
+use super::patient::{Chain, ChainTissue};
 use super::scene::EarScene;
 use super::warp::PatientWarp;
 use crate::meshdev::structures::DEFAULT_LABELS;
@@ -33,7 +33,7 @@ impl TissueField for PatientField<'_> {
 /// ossicle where the
 /// voxel centre lies in it; the eardrum where the membrane passes within half a voxel of the
 /// centre (a one-voxel sheet, since the real one is far thinner than a voxel).
-pub fn label_map(patient: &PatientAnatomy, warp: &PatientWarp, grid: &Grid) -> Vec<u8> {
+pub fn label_map(patient: &dyn Chain, warp: &PatientWarp, grid: &Grid) -> Vec<u8> {
     let eardrum = patient.anatomy().eardrum();
     let [nx, ny, nz] = grid.dims;
     let half_voxel = 0.5 * grid.spacing.iter().copied().fold(0.0, f64::max) / warp.scale;
@@ -70,6 +70,7 @@ mod tests {
     use super::*;
     use crate::atlas::Anatomy;
     use crate::phantom::imaging::{ImagingParams, render};
+    use crate::phantom::patient::PatientAnatomy;
     use crate::phantom::scene::{CavityParams, TissueLevels};
     use crate::phantom::variability::ShapeDetail;
     use crate::phantom::warp::{Deformation, WaveMode};

@@ -1,7 +1,8 @@
 //! The noise-free tissue field of a synthetic temporal bone around the ossicular chain, in the
 //! anatomy's frame: what a CBCT of the middle ear shows, as Hounsfield units at a point, with
 //! a clearance (a radius within which the tissue cannot change) for the adaptive renderer.
-//! The chain is a `PatientAnatomy` (the atlas, or a patient with its shape detail).
+//! The chain is any [`Chain`]: a `PatientAnatomy` (the atlas, or a patient with its shape
+//! detail) or a real chain's surfaces (`mesh_chain`).
 //!
 //! - ossicles: dense bone; joints, ligaments and tendons: soft tissue;
 //! - the eardrum: a soft-tissue sheet of its real thickness (pars tensa / flaccida), far
@@ -22,9 +23,10 @@ use serde::{Deserialize, Serialize};
 
 use super::drum::{DrumSlopes, drum_position, sheet_fraction};
 use super::imaging::{FieldSample, TissueField};
-use super::patient::{ChainTissue, PatientAnatomy};
+use super::patient::{Chain, ChainTissue};
 use super::variability::DETAILED_LIPSCHITZ;
 use crate::atlas::materials::membrane_thickness_mm;
+use crate::atlas::sdf::Disc;
 use crate::atlas::{Anatomy, MembraneRegion};
 
 /// Width of the stapedial annular ligament between the footplate's rim and the oval window's
@@ -88,20 +90,30 @@ impl Default for CavityParams {
 
 /// The tissue field of one ear, in the anatomy's frame (mm).
 pub struct EarScene<'a> {
-    patient: &'a PatientAnatomy,
+    patient: &'a dyn Chain,
     levels: TissueLevels,
     cavity: CavityParams,
     slopes: DrumSlopes,
+    /// The oval window's disc: the anatomy's footplate, or where a real chain's sits.
+    footplate: Disc,
 }
 
 impl<'a> EarScene<'a> {
-    pub fn new(patient: &'a PatientAnatomy, levels: TissueLevels, cavity: CavityParams) -> Self {
+    pub fn new(patient: &'a dyn Chain, levels: TissueLevels, cavity: CavityParams) -> Self {
         EarScene {
             patient,
             levels,
             cavity,
             slopes: DrumSlopes::measure(patient.anatomy().eardrum()),
+            footplate: patient.anatomy().footplate().clone(),
         }
+    }
+
+    /// The same scene with the vestibule and the oval window around `footplate` (a chain
+    /// whose stapes is not the anatomy's).
+    pub fn with_footplate(mut self, footplate: Disc) -> Self {
+        self.footplate = footplate;
+        self
     }
 
     pub fn levels(&self) -> &TissueLevels {
@@ -169,7 +181,7 @@ impl EarScene<'_> {
             }
         }
         // behind the oval window: the vestibule, then the otic capsule
-        let fp = self.anatomy().footplate();
+        let fp = &self.footplate;
         let depth = (p - fp.center).dot(&fp.frame.e3);
         let from_fp = (p - fp.center).norm();
         clearance = clearance
@@ -218,6 +230,7 @@ impl TissueField for EarScene<'_> {
 mod tests {
     use super::*;
     use crate::mesh::LabelledDomain;
+    use crate::phantom::patient::PatientAnatomy;
 
     fn scene(patient: &PatientAnatomy) -> EarScene<'_> {
         EarScene::new(patient, TissueLevels::default(), CavityParams::default())

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::imaging::ImagingParams;
+use super::mesh_chain::ChainPlacement;
 use super::patient::PatientAnatomy;
 use super::scene::{CavityParams, TissueLevels};
 use super::variability::{OssicleMotion, ShapeDetail};
@@ -188,6 +189,10 @@ pub struct Truth {
     pub generator: String,
     pub seed: u64,
     pub side: Side,
+    /// The real chain the case was made from, and how the atlas was placed around it (absent
+    /// for a case made from the atlas anatomy).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub anatomy: Option<ChainPlacement>,
     /// Exact landmarks on the true anatomy (the landmark files carry them with pick noise).
     pub landmarks: LandmarkRecord,
     pub landmarks_picked: LandmarkRecord,

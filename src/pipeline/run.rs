@@ -286,8 +286,16 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     let t = Instant::now();
     let deform_vtu = out.join("stages").join("deform.vtu");
     let (nodes, deform_json): (Vec<Point3<f64>>, Value) = if opts.from <= Stage::Deform {
-        let (result, eardrum) = deform_atlas(&atlas, &placed, &sampler, step, &config.deform)
-            .map_err(|e| Error::Usage(e.to_string()))?;
+        let registered = deform_atlas(
+            &atlas,
+            &placed,
+            &sampler,
+            step,
+            &config.articulate,
+            &config.deform,
+        )
+        .map_err(|e| Error::Usage(e.to_string()))?;
+        let (result, eardrum) = (registered.deform, registered.eardrum);
         if let DeformStatus::InversionGuard { message } = &result.status {
             progress::log(format!(
                 "{}: deformable stage stopped at its last valid state: {message}",
@@ -295,6 +303,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             ));
         }
         let value = json!({
+            "articulation": registered.articulation,
             "status": result.status,
             "iterations": result.history.len(),
             "history": result.history,

@@ -14,7 +14,7 @@ use crate::atlas::{Atlas, Part};
 use crate::config::IngestConfig;
 use crate::mesh::TriMesh;
 use crate::meshdev::sampling::DEFAULT_SEED;
-use crate::meshdev::structures::{default_label_table, load_structures};
+use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures, merge};
 use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
 
 /// Area samples per surface and direction: the sampling error of a mean distance is then far
@@ -67,17 +67,34 @@ pub fn score(
         ..CompareOptions::with_tolerance(tolerance_mm)
     };
     let mut out = BTreeMap::new();
+    // each structure against its own reference, and a fused reference (one surface for the
+    // whole chain, as a CT segmentation that does not separate the ossicles gives) against
+    // the union of the registered ossicles
+    let mut jobs: Vec<(&str, TriMesh, &TriMesh)> = Vec::new();
     for part in Part::STRUCTURES {
-        let Some(truth) = reference.surfaces.get(part.name()) else {
+        if let Some(truth) = reference.surfaces.get(part.name())
+            && !atlas.labels_of(part).is_empty()
+        {
+            jobs.push((part.name(), atlas.part_surface(part, nodes), truth));
+        }
+    }
+    for (fused, parts) in FUSED_NAMES {
+        let Some(truth) = reference.surfaces.get(fused) else {
             continue;
         };
-        if atlas.labels_of(part).is_empty() {
-            continue;
+        let surfaces: Vec<TriMesh> = Part::BONES
+            .iter()
+            .filter(|p| parts.contains(&p.name()) && !atlas.labels_of(**p).is_empty())
+            .map(|p| atlas.part_surface(*p, nodes))
+            .collect();
+        if surfaces.len() == parts.len() {
+            jobs.push((fused, merge(&surfaces.iter().collect::<Vec<_>>()), truth));
         }
-        let test = atlas.part_surface(part, nodes);
+    }
+    for (name, test, truth) in jobs {
         let c = compare(&test, truth, &options)?;
         out.insert(
-            part.name().to_string(),
+            name.to_string(),
             StructureScore {
                 distances: c.distances,
                 deviation: c.deviation.quality,

@@ -9,6 +9,7 @@ use std::collections::HashSet;
 
 use nalgebra::Point3;
 
+use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
 use super::deform::{DeformConfig, DeformError, DeformResult, ProbeKind, ProbeTriangle, deform};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::rigid::{RigidFit, fit_similarity};
@@ -23,6 +24,14 @@ use crate::mesh::tet::BoundaryOf;
 /// image blurs into them, and connective tissue has no edge a CBCT can see; those faces follow
 /// through the FEM. The eardrum is fitted afterwards (see [`fit_eardrum`]).
 pub fn probe_triangles(atlas: &Atlas) -> Vec<ProbeTriangle> {
+    probe_triangles_by_part(atlas)
+        .into_iter()
+        .map(|(_, t)| t)
+        .collect()
+}
+
+/// [`probe_triangles`] with the ossicle each belongs to.
+pub fn probe_triangles_by_part(atlas: &Atlas) -> Vec<(Part, ProbeTriangle)> {
     let key = |t: &[u32; 3]| {
         let mut k = *t;
         k.sort_unstable();
@@ -43,9 +52,14 @@ pub fn probe_triangles(atlas: &Atlas) -> Vec<ProbeTriangle> {
                 .part_triangles(part)
                 .into_iter()
                 .filter(|t| outer.contains(&key(t)))
-                .map(|nodes| ProbeTriangle {
-                    nodes,
-                    kind: ProbeKind::Bone,
+                .map(|nodes| {
+                    (
+                        part,
+                        ProbeTriangle {
+                            nodes,
+                            kind: ProbeKind::Bone,
+                        },
+                    )
                 }),
         );
     }
@@ -67,22 +81,46 @@ pub fn place(atlas: &Atlas, fit: &RigidFit) -> Vec<Point3<f64>> {
         .collect()
 }
 
-/// The deformable stage from the placed atlas: the ossicles and their connective tissue
-/// through the FEM, then the eardrum. `step` is the probe step (the smallest voxel spacing,
-/// mm).
+/// What the deformable stage made: the registered nodes with the record of each step.
+#[derive(Debug, Clone)]
+pub struct Registered {
+    /// Each ossicle's own pose (absent when `[articulate]` is off).
+    pub articulation: Option<Articulation>,
+    pub deform: DeformResult,
+    pub eardrum: EardrumFit,
+}
+
+/// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and
+/// their connective tissue through the FEM (its rest shape the articulated atlas), then the
+/// eardrum. `step` is the probe step (the smallest voxel spacing, mm).
 pub fn deform_atlas(
     atlas: &Atlas,
     placed: &[Point3<f64>],
     sampler: &Sampler,
     step: f64,
+    articulate_cfg: &ArticulateConfig,
     cfg: &DeformConfig,
-) -> Result<(DeformResult, EardrumFit), DeformError> {
-    let model = atlas.fem_model(
-        placed,
-        Some((cfg.regularisation_modulus_pa, cfg.min_modulus_ratio)),
-        false,
-    )?;
+) -> Result<Registered, DeformError> {
+    let moduli = Some((cfg.regularisation_modulus_pa, cfg.min_modulus_ratio));
+    let (rest, articulation) = if articulate_cfg.enabled {
+        let (targets, mut record) = articulate(atlas, placed, sampler, step, cfg, articulate_cfg);
+        let placed_model = atlas.fem_model(placed, moduli, false)?;
+        let x = articulated_shape(
+            &placed_model,
+            &targets,
+            cfg.regularisation_modulus_pa,
+            &mut record,
+        )?;
+        (x, Some(record))
+    } else {
+        (placed.to_vec(), None)
+    };
+    let model = atlas.fem_model(&rest, moduli, false)?;
     let mut result = deform(&model, &probe_triangles(atlas), sampler, step, cfg)?;
     let eardrum = fit_eardrum(atlas, placed, &mut result.positions, sampler, step, cfg);
-    Ok((result, eardrum))
+    Ok(Registered {
+        articulation,
+        deform: result,
+        eardrum,
+    })
 }

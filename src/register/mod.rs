@@ -1,6 +1,7 @@
 //! Registration of the atlas onto a patient: landmarks, the ear's side, the rigid (Kabsch /
 //! Umeyama) alignment, the deformable stage, and the atlas fitted through them.
 
+pub mod articulate;
 pub mod atlas_fit;
 pub mod deform;
 pub mod eardrum;

@@ -289,7 +289,7 @@ fn soften_around(
 }
 
 /// For each probe triangle, the probe triangles sharing a node with it.
-fn triangle_neighbours(probes: &[ProbeTriangle], node_count: usize) -> Vec<Vec<u32>> {
+pub(crate) fn triangle_neighbours(probes: &[ProbeTriangle], node_count: usize) -> Vec<Vec<u32>> {
     let mut by_node: Vec<Vec<u32>> = vec![Vec::new(); node_count];
     for (t, tri) in probes.iter().enumerate() {
         for k in tri.nodes {
@@ -315,7 +315,11 @@ fn triangle_neighbours(probes: &[ProbeTriangle], node_count: usize) -> Vec<Vec<u
 
 /// Keeps a border point when its offset is within `tolerance` of the median offset of the
 /// neighbours that found one (isolated finds, with no neighbour to agree, are kept).
-fn screen(borders: &[Option<(Border, f64)>], neighbours: &[Vec<u32>], tolerance: f64) -> Vec<bool> {
+pub(crate) fn screen(
+    borders: &[Option<(Border, f64)>],
+    neighbours: &[Vec<u32>],
+    tolerance: f64,
+) -> Vec<bool> {
     borders
         .par_iter()
         .enumerate()

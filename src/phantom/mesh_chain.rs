@@ -1,0 +1,447 @@
+//! A real ossicular chain as the phantom's patient: closed surfaces (one per ossicle, or one
+//! fused chain) with the chain's three landmarks and side, read from a folder, and placed in
+//! the atlas frame so that the rest of the scene (eardrum, canal, cavity, oval window,
+//! ligaments and tendons, which real chain data lacks) comes from the atlas around it.
+//!
+//! Placement: the atlas landmarks are fitted onto the chain's (similarity, Umeyama), then the
+//! rotation and translation are refined by trimmed point-to-surface ICP of the atlas's ossicle
+//! surfaces onto the chain, with the scale kept from the landmarks (a CT-derived chain is
+//! inflated by partial volume, which an ICP scale would absorb). The chain is then mapped into
+//! the atlas frame by the inverse, and the phantom's warp restores its size. The oval window
+//! follows the real stapes: the atlas footplate's disc is moved along its normal to the
+//! chain's medial-most point within the disc's outline, and centred on that face.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
+use super::truth::ossicle_surfaces;
+use super::variability::Ossicle;
+use crate::atlas::sdf::Disc;
+use crate::atlas::{Anatomy, Side};
+use crate::ear::Landmarks;
+use crate::mesh::TriMesh;
+use crate::mesh::spatial::{Bvh, SignedSurface};
+use crate::meshdev::structures::read_surface;
+use crate::register::landmarks::read_landmarks;
+use crate::register::rigid::{SimilarityTransform, fit_similarity};
+
+/// Surface file names per part, tried in this order (PLY, STL, OBJ).
+const EXTENSIONS: [&str; 3] = ["ply", "stl", "obj"];
+/// Names a fused chain surface may have.
+const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
+/// Landmark files, tried in this order.
+const LANDMARK_FILES: [&str; 4] = [
+    "landmarks.json",
+    "landmarks.mrk.json",
+    "landmarks.fcsv",
+    "landmarks.csv",
+];
+/// ICP: iterations, and pairs farther apart than this are trimmed [mm].
+const ICP_ITERATIONS: usize = 40;
+const ICP_TRIM_MM: f64 = 1.0;
+
+/// What one surface of the chain is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PartKind {
+    Ossicle(Ossicle),
+    /// Malleus, incus and stapes in one closed surface.
+    Chain,
+}
+
+impl PartKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PartKind::Ossicle(o) => o.name(),
+            PartKind::Chain => "chain",
+        }
+    }
+}
+
+/// A real chain as read from its folder (the chain's own frame, mm).
+#[derive(Debug, Clone)]
+pub struct ChainAnatomy {
+    /// The folder's name (never its path: it goes into truth.json).
+    pub name: String,
+    pub parts: Vec<(PartKind, TriMesh)>,
+    pub landmarks: Landmarks,
+    pub side: Side,
+}
+
+/// Errors reading a chain folder.
+#[derive(Debug, thiserror::Error)]
+pub enum ChainError {
+    #[error(
+        "--anatomy {dir}: no chain surfaces; expected malleus, incus and stapes (or one fused chain.*) as .ply, .stl or .obj, in the folder or in its surfaces/"
+    )]
+    NoSurfaces { dir: PathBuf },
+    #[error(
+        "--anatomy {dir}: found {found} but not {missing}; expected all three ossicles or one fused chain"
+    )]
+    MissingOssicle {
+        dir: PathBuf,
+        found: String,
+        missing: String,
+    },
+    #[error("--anatomy {dir}: no landmark file; expected one of {}", LANDMARK_FILES.join(", "))]
+    NoLandmarks { dir: PathBuf },
+    #[error(
+        "{path}: the file does not say the ear's side; expected \"side\": \"left\" or \"right\""
+    )]
+    NoSide { path: PathBuf },
+    #[error("{0}")]
+    Read(String),
+    #[error("{path}: {what}")]
+    Surface { path: PathBuf, what: String },
+}
+
+fn find_file(dirs: &[PathBuf], stem: &str) -> Option<PathBuf> {
+    dirs.iter().find_map(|d| {
+        EXTENSIONS
+            .iter()
+            .map(|e| d.join(format!("{stem}.{e}")))
+            .find(|p| p.is_file())
+    })
+}
+
+fn read_part(path: &Path) -> Result<TriMesh, ChainError> {
+    let mesh = read_surface(path).map_err(|e| ChainError::Read(e.to_string()))?;
+    if mesh.triangles.is_empty() || mesh.signed_volume() <= 0.0 {
+        return Err(ChainError::Surface {
+            path: path.to_path_buf(),
+            what: format!(
+                "expected a closed surface with outward normals (enclosed volume {:.3} mm³)",
+                mesh.signed_volume()
+            ),
+        });
+    }
+    Ok(mesh)
+}
+
+impl ChainAnatomy {
+    /// Reads `dir`: `malleus`, `incus` and `stapes` surfaces, or one fused `chain` (also
+    /// `ossicles`), in the folder or its `surfaces/` (as `otoatlas atlas export` writes them),
+    /// and a landmark file that says the side.
+    pub fn load(dir: &Path) -> Result<ChainAnatomy, ChainError> {
+        let dirs = [dir.to_path_buf(), dir.join("surfaces")];
+        let ossicles: Vec<(Ossicle, Option<PathBuf>)> = Ossicle::ALL
+            .iter()
+            .map(|o| (*o, find_file(&dirs, o.name())))
+            .collect();
+        let found: Vec<&str> = ossicles
+            .iter()
+            .filter(|(_, p)| p.is_some())
+            .map(|(o, _)| o.name())
+            .collect();
+        let fused = FUSED_STEMS.iter().find_map(|s| find_file(&dirs, s));
+        let parts = if found.len() == 3 {
+            ossicles
+                .into_iter()
+                .filter_map(|(o, p)| p.map(|p| (o, p)))
+                .map(|(o, p)| Ok((PartKind::Ossicle(o), read_part(&p)?)))
+                .collect::<Result<Vec<_>, ChainError>>()?
+        } else if let Some(p) = fused {
+            vec![(PartKind::Chain, read_part(&p)?)]
+        } else if found.is_empty() {
+            return Err(ChainError::NoSurfaces {
+                dir: dir.to_path_buf(),
+            });
+        } else {
+            let missing: Vec<&str> = Ossicle::ALL
+                .iter()
+                .map(|o| o.name())
+                .filter(|n| !found.contains(n))
+                .collect();
+            return Err(ChainError::MissingOssicle {
+                dir: dir.to_path_buf(),
+                found: found.join(", "),
+                missing: missing.join(", "),
+            });
+        };
+        let path = dirs
+            .iter()
+            .flat_map(|d| LANDMARK_FILES.iter().map(move |f| d.join(f)))
+            .find(|p| p.is_file())
+            .ok_or_else(|| ChainError::NoLandmarks {
+                dir: dir.to_path_buf(),
+            })?;
+        let file = read_landmarks(&path).map_err(|e| ChainError::Read(e.to_string()))?;
+        let side = file.side.ok_or(ChainError::NoSide { path })?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "anatomy".into());
+        Ok(ChainAnatomy {
+            name,
+            parts,
+            landmarks: file.landmarks,
+            side,
+        })
+    }
+
+    /// The same chain as the other ear: mirrored in x = 0 (triangles turned to stay outward).
+    pub fn mirrored(&self) -> ChainAnatomy {
+        let flip = |p: &Point3<f64>| Point3::new(-p.x, p.y, p.z);
+        ChainAnatomy {
+            name: self.name.clone(),
+            parts: self
+                .parts
+                .iter()
+                .map(|(k, m)| {
+                    (
+                        *k,
+                        TriMesh {
+                            vertices: m.vertices.iter().map(flip).collect(),
+                            triangles: m.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect(),
+                        },
+                    )
+                })
+                .collect(),
+            landmarks: Landmarks::from_points(self.landmarks.points().map(|p| flip(&p))),
+            side: match self.side {
+                Side::Left => Side::Right,
+                Side::Right => Side::Left,
+            },
+        }
+    }
+
+    /// Every part in one mesh.
+    fn union(&self) -> TriMesh {
+        let mut all = TriMesh::default();
+        for (_, m) in &self.parts {
+            let base = all.vertices.len() as u32;
+            all.vertices.extend_from_slice(&m.vertices);
+            all.triangles
+                .extend(m.triangles.iter().map(|t| t.map(|k| k + base)));
+        }
+        all
+    }
+}
+
+/// How the atlas was placed on the chain (truth.json's `anatomy` record).
+#[derive(Debug, Clone, Serialize)]
+pub struct ChainPlacement {
+    /// The chain folder's name.
+    pub name: String,
+    /// The parts, by name.
+    pub parts: Vec<&'static str>,
+    /// The chain was mirrored to the requested side.
+    pub mirrored: bool,
+    /// Atlas frame to the chain's frame (after mirroring).
+    pub atlas_to_chain: SimilarityTransform,
+    /// RMS of the atlas landmarks against the chain's after the landmark fit [mm].
+    pub landmark_rms_mm: f64,
+    /// Mean distance of the atlas ossicle surfaces to the chain after ICP [mm].
+    pub icp_mean_mm: f64,
+    /// How far the oval window was moved from the atlas's footplate [mm].
+    pub footplate_shift_mm: f64,
+}
+
+/// A real chain in the atlas frame, with the atlas around it.
+pub struct MeshChain {
+    atlas: PatientAnatomy,
+    parts: Vec<(PartKind, SignedSurface, Aabb)>,
+    /// The parts in the atlas frame (truth surfaces).
+    meshes: Vec<(PartKind, TriMesh)>,
+    landmarks: Landmarks,
+    footplate: Disc,
+    placement: ChainPlacement,
+}
+
+impl MeshChain {
+    /// Places `chain` (already on `atlas`'s side) in the atlas frame.
+    pub fn place(chain: &ChainAnatomy, atlas: Anatomy, mirrored: bool) -> Result<Self, ChainError> {
+        let surface_error = |what: String| ChainError::Surface {
+            path: PathBuf::from(&chain.name),
+            what,
+        };
+        let fit = fit_similarity(&atlas.landmarks().points(), &chain.landmarks.points(), true)
+            .ok_or_else(|| surface_error("the chain's landmarks are collinear".into()))?;
+        let union = chain.union();
+        let bvh = Bvh::new(&union, "chain").map_err(|e| surface_error(e.to_string()))?;
+        let plain = PatientAnatomy::plain(atlas);
+        let samples: Vec<Point3<f64>> = ossicle_surfaces(&plain)
+            .iter()
+            .flat_map(|m| m.vertices.iter().copied())
+            .collect();
+        let (atlas_to_chain, icp_mean_mm) = icp(&samples, &bvh, fit.transform);
+        let to_atlas = atlas_to_chain.inverse();
+        let meshes: Vec<(PartKind, TriMesh)> = chain
+            .parts
+            .iter()
+            .map(|(k, m)| {
+                (
+                    *k,
+                    TriMesh {
+                        vertices: m.vertices.iter().map(|p| to_atlas.apply(p)).collect(),
+                        triangles: m.triangles.clone(),
+                    },
+                )
+            })
+            .collect();
+        let parts = meshes
+            .iter()
+            .map(|(k, m)| {
+                let surface =
+                    SignedSurface::new(m, "chain").map_err(|e| surface_error(e.to_string()))?;
+                let mut b = Aabb::empty();
+                m.vertices.iter().for_each(|p| b.add(&p.coords, 0.0));
+                Ok((*k, surface, b))
+            })
+            .collect::<Result<Vec<_>, ChainError>>()?;
+        let atlas_fp = plain.anatomy().footplate().clone();
+        let footplate = oval_window(&atlas_fp, &meshes);
+        let placement = ChainPlacement {
+            name: chain.name.clone(),
+            parts: chain.parts.iter().map(|(k, _)| k.name()).collect(),
+            mirrored,
+            atlas_to_chain,
+            landmark_rms_mm: fit.rms_mm,
+            icp_mean_mm,
+            footplate_shift_mm: (footplate.center - atlas_fp.center).norm(),
+        };
+        Ok(MeshChain {
+            atlas: plain,
+            parts,
+            meshes,
+            landmarks: Landmarks::from_points(chain.landmarks.points().map(|p| to_atlas.apply(&p))),
+            footplate,
+            placement,
+        })
+    }
+
+    /// The chain's landmarks in the atlas frame.
+    pub fn landmarks(&self) -> Landmarks {
+        self.landmarks
+    }
+
+    /// The oval window the scene puts around the real stapes.
+    pub fn footplate(&self) -> &Disc {
+        &self.footplate
+    }
+
+    /// The chain's surfaces in the atlas frame.
+    pub fn meshes(&self) -> &[(PartKind, TriMesh)] {
+        &self.meshes
+    }
+
+    pub fn placement(&self) -> &ChainPlacement {
+        &self.placement
+    }
+
+    /// Whether the chain is one fused surface.
+    pub fn is_fused(&self) -> bool {
+        self.parts.iter().any(|(k, _, _)| *k == PartKind::Chain)
+    }
+}
+
+impl Chain for MeshChain {
+    /// Bones from the chain's surfaces (a fused chain stands in the malleus's slot), the atlas's
+    /// ligaments and tendons; a real chain has no separate joint tissue.
+    fn distances(&self, p: &Point3<f64>, far_mm: f64) -> ChainDistances {
+        let mut bones = [f64::INFINITY; 3];
+        for (kind, surface, b) in &self.parts {
+            let k = match kind {
+                PartKind::Ossicle(o) => *o as usize,
+                PartKind::Chain => 0,
+            };
+            let d = b.distance(p);
+            bones[k] = if d > far_mm {
+                d
+            } else {
+                surface.signed_distance(p)
+            };
+        }
+        ChainDistances {
+            bones,
+            joints: f64::INFINITY,
+            bands: self.atlas.bands_distance(p, far_mm),
+        }
+    }
+
+    fn anatomy(&self) -> &Anatomy {
+        self.atlas.anatomy()
+    }
+}
+
+/// Trimmed point-to-surface ICP of `samples` (atlas frame) onto the chain, refining rotation
+/// and translation from `start` with its scale fixed; returns the transform and the mean
+/// distance of the kept pairs.
+fn icp(
+    samples: &[Point3<f64>],
+    chain: &Bvh,
+    start: SimilarityTransform,
+) -> (SimilarityTransform, f64) {
+    let mut t = start;
+    let mut mean = f64::INFINITY;
+    for _ in 0..ICP_ITERATIONS {
+        let pairs: Vec<(Point3<f64>, Point3<f64>, f64)> = samples
+            .par_iter()
+            .map(|a| {
+                let x = t.apply(a);
+                let hit = chain.closest(&x);
+                (*a, hit.point, (hit.point - x).norm())
+            })
+            .collect();
+        let kept: Vec<&(Point3<f64>, Point3<f64>, f64)> =
+            pairs.iter().filter(|(_, _, d)| *d < ICP_TRIM_MM).collect();
+        if kept.len() < 3 {
+            break;
+        }
+        mean = kept.iter().map(|(_, _, d)| d).sum::<f64>() / kept.len() as f64;
+        // rigid fit on the atlas points scaled by the landmark scale
+        let source: Vec<Point3<f64>> = kept.iter().map(|(a, _, _)| a * t.scale).collect();
+        let target: Vec<Point3<f64>> = kept.iter().map(|(_, c, _)| *c).collect();
+        let Some(fit) = fit_similarity(&source, &target, false) else {
+            break;
+        };
+        let next = SimilarityTransform::new(
+            fit.transform.rotation_matrix(),
+            Vector3::from(fit.transform.translation),
+            t.scale,
+        );
+        let moved = samples
+            .iter()
+            .step_by(97)
+            .map(|a| (next.apply(a) - t.apply(a)).norm())
+            .fold(0.0, f64::max);
+        t = next;
+        if moved < 1e-4 {
+            break;
+        }
+    }
+    (t, mean)
+}
+
+/// The atlas's footplate disc moved onto the chain's stapes: along its normal to the chain's
+/// medial-most vertex within its outline (within 1 mm of the disc), and in its plane to the
+/// centroid of the chain's vertices on that medial face (within 0.2 mm of it). The atlas's
+/// disc when the chain has no vertex there.
+fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
+    let local: Vec<Vector3<f64>> = meshes
+        .iter()
+        .filter(|(k, _)| matches!(k, PartKind::Chain | PartKind::Ossicle(Ossicle::Stapes)))
+        .flat_map(|(_, m)| m.vertices.iter())
+        .map(|p| fp.frame.local(&(p - fp.center)))
+        .filter(|q| {
+            (q.x / fp.semi_axes[0]).powi(2) + (q.y / fp.semi_axes[1]).powi(2) <= 1.0
+                && q.z.abs() <= 1.0
+        })
+        .collect();
+    let Some(deepest) = local.iter().map(|q| q.z).reduce(f64::max) else {
+        return fp.clone();
+    };
+    let face: Vec<&Vector3<f64>> = local.iter().filter(|q| q.z >= deepest - 0.2).collect();
+    let centre = face.iter().fold(Vector3::zeros(), |s, q| s + **q) / face.len() as f64;
+    let shift = fp.frame.e1 * centre.x
+        + fp.frame.e2 * centre.y
+        + fp.frame.e3 * (deepest - 0.5 * fp.thickness);
+    Disc {
+        center: fp.center + shift,
+        ..fp.clone()
+    }
+}
