@@ -10,13 +10,15 @@ use std::collections::HashSet;
 use nalgebra::Point3;
 
 use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
-use super::deform::{DeformConfig, DeformError, DeformResult, ProbeKind, ProbeTriangle, deform};
+use super::deform::{
+    DeformConfig, DeformError, DeformResult, DeformStatus, ProbeKind, ProbeTriangle, deform,
+};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::rigid::{RigidFit, fit_similarity};
 use crate::atlas::{Atlas, Part};
 use crate::ear::Landmarks;
 use crate::image::Sampler;
-use crate::mesh::tet::BoundaryOf;
+use crate::mesh::tet::{BoundaryOf, signed_volume};
 
 /// The surfaces the deformable stage probes: the ossicles' faces on the outer boundary of the
 /// atlas (bone edges against air, fluid or soft tissue). Faces an ossicle shares with a joint,
@@ -81,6 +83,25 @@ pub fn place(atlas: &Atlas, fit: &RigidFit) -> Vec<Point3<f64>> {
         .collect()
 }
 
+/// No tetrahedron may keep less than this fraction of its volume in the placed atlas after a
+/// rest-shape update (each level's FEM only keeps it above a tenth of its own rest volume).
+const MIN_VOLUME_RATIO: f64 = 0.05;
+
+/// The smallest ratio of a tetrahedron's volume at `x` to its volume at `placed`.
+fn smallest_volume_ratio(atlas: &Atlas, placed: &[Point3<f64>], x: &[Point3<f64>]) -> f64 {
+    let volume = |p: &[Point3<f64>], t: &[u32; 4]| {
+        let [a, b, c, d] = t.map(|k| p[k as usize]);
+        signed_volume(&a, &b, &c, &d)
+    };
+    atlas
+        .mesh
+        .tets
+        .tets
+        .iter()
+        .map(|t| volume(x, t) / volume(placed, t).max(f64::MIN_POSITIVE))
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// What the deformable stage made: the registered nodes with the record of each step.
 #[derive(Debug, Clone)]
 pub struct Registered {
@@ -115,8 +136,44 @@ pub fn deform_atlas(
     } else {
         (placed.to_vec(), None)
     };
-    let model = atlas.fem_model(&rest, moduli, false)?;
-    let mut result = deform(&model, &probe_triangles(atlas), sampler, step, cfg)?;
+    // the FEM regularises each level's change from its rest shape; after a level settles, its
+    // result becomes the next level's rest shape (coarse to fine: the shape found so far is no
+    // longer held back, only the further change is)
+    let probes = probe_triangles(atlas);
+    let mut rest = rest;
+    let mut result: Option<DeformResult> = None;
+    for level_index in 0..=cfg.rest_updates {
+        let model = atlas.fem_model(&rest, moduli, false)?;
+        let level = deform(&model, &probes, sampler, step, cfg)?;
+        // a later level may not flatten an element: the FEM only guards against inversion,
+        // and each level regularises from the last one's shape
+        if level_index > 0
+            && smallest_volume_ratio(atlas, placed, &level.positions) < MIN_VOLUME_RATIO
+        {
+            break;
+        }
+        rest = level.positions.clone();
+        let stop = !matches!(level.status, DeformStatus::Converged);
+        result = Some(match result {
+            None => level,
+            Some(mut all) => {
+                let offset = all.history.len();
+                all.history.extend(level.history.into_iter().map(|mut h| {
+                    h.iteration += offset;
+                    h
+                }));
+                all.positions = level.positions;
+                all.status = level.status;
+                all
+            }
+        });
+        if stop {
+            break;
+        }
+    }
+    let Some(mut result) = result else {
+        return Err(DeformError::NothingFound);
+    };
     let eardrum = fit_eardrum(atlas, placed, &mut result.positions, sampler, step, cfg);
     Ok(Registered {
         articulation,

