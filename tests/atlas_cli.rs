@@ -523,16 +523,7 @@ fn import_rejects_undeclared_tags_and_landmarks_off_the_mesh() {
 
 /// `../shared/anatomy/sofa-ossicles` (or `$OTOATLAS_SHARED_DIR/anatomy/...`), if present.
 fn sofa_dir() -> Option<PathBuf> {
-    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| common::root().join("../shared"));
-    let dir = shared.join("anatomy/sofa-ossicles");
-    if dir.join("Ossicles.vtu").is_file() {
-        Some(dir)
-    } else {
-        println!("skipped: {} not present", dir.display());
-        None
-    }
+    common::shared_anatomy().map(|d| d.join("sofa-ossicles"))
 }
 
 #[test]

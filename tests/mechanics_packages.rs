@@ -144,7 +144,12 @@ fn package_commands(package: &std::path::Path, manifest: &serde_json::Value) {
 fn validation_can_be_switched_off() {
     let dir = tempfile::tempdir().unwrap();
     let default = std::fs::read_to_string(common::root().join("pipeline.toml")).unwrap();
-    let off = default.replacen("\nenabled = true", "\nenabled = false", 1);
+    let at = default.find("\n[validate]").unwrap();
+    let (head, tail) = default.split_at(at);
+    let off = format!(
+        "{head}{}",
+        tail.replacen("\nenabled = true", "\nenabled = false", 1)
+    );
     assert_ne!(off, default);
     let config = dir.path().join("pipeline.toml");
     std::fs::write(&config, off).unwrap();

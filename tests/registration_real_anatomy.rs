@@ -20,7 +20,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{otoatlas, otoatlas_json, root};
+use common::{otoatlas, otoatlas_json, root, shared_anatomy};
 use serde_json::Value;
 
 /// The CT chain's landmarks in its OBJ frame (mm, LPS as a right ear).
@@ -36,24 +36,6 @@ const MASD_MAX_MM: f64 = 0.4;
 const HD95_MAX_MM: f64 = 1.6;
 const MIN_IMPROVEMENT: f64 = 0.25;
 
-/// The shared anatomy folder; absent is a failure when `OTOATLAS_REQUIRE_SHARED=1` (CI).
-fn shared_anatomy() -> Option<PathBuf> {
-    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("../shared"));
-    let dir = shared.join("anatomy");
-    if dir.join("sofa-ossicles/Ossicles.vtu").is_file() {
-        return Some(dir);
-    }
-    assert!(
-        std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() != Ok("1"),
-        "{} is missing and OTOATLAS_REQUIRE_SHARED=1",
-        dir.display()
-    );
-    eprintln!("skipped: {} not present", dir.display());
-    None
-}
-
 fn run_ok(args: &[&str]) {
     let out = otoatlas(args);
     assert!(
@@ -65,6 +47,25 @@ fn run_ok(args: &[&str]) {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
+}
+
+/// One phantom case around `chain` (`otoatlas phantom --anatomy`); returns its folder.
+fn phantom(out: &Path, seed: &str, spacing: &str, side: &str, chain: &Path) -> PathBuf {
+    run_ok(&[
+        "phantom",
+        "--out",
+        s(out),
+        "--seed",
+        seed,
+        "--spacing",
+        spacing,
+        "--side",
+        side,
+        "--anatomy",
+        s(chain),
+        "--quiet",
+    ]);
+    out.join("case-001")
 }
 
 /// The SOFA chain as per-ossicle surfaces with its landmarks.
@@ -173,21 +174,7 @@ fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
         {
             let seed = (101 + k).to_string();
             let cases = tmp.path().join(format!("{name}-{seed}"));
-            run_ok(&[
-                "phantom",
-                "--out",
-                s(&cases),
-                "--seed",
-                &seed,
-                "--spacing",
-                spacing,
-                "--side",
-                side,
-                "--anatomy",
-                s(chain),
-                "--quiet",
-            ]);
-            let case = cases.join("case-001");
+            let case = phantom(&cases, &seed, spacing, side, chain);
             let out = tmp.path().join(format!("out-{name}-{seed}"));
             let (code, m) =
                 otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
@@ -239,32 +226,26 @@ fn a_chain_folder_without_its_side_is_refused_naming_the_file() {
         chain.join("landmarks.fcsv"),
     )
     .unwrap();
-    let out = otoatlas(&[
-        "phantom",
-        "--out",
-        s(&tmp.path().join("cases")),
-        "--anatomy",
-        s(&chain),
-        "--quiet",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let refused = || {
+        let out = otoatlas(&[
+            "phantom",
+            "--out",
+            s(&tmp.path().join("cases")),
+            "--anatomy",
+            s(&chain),
+            "--quiet",
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = refused();
     assert!(
         err.contains("landmarks.fcsv") && err.contains("side"),
         "{err}"
     );
     // with only two ossicles, the missing one is named
     std::fs::remove_file(chain.join("stapes.ply")).unwrap();
-    let out = otoatlas(&[
-        "phantom",
-        "--out",
-        s(&tmp.path().join("cases")),
-        "--anatomy",
-        s(&chain),
-        "--quiet",
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused();
     assert!(err.contains("stapes"), "{err}");
 }
 
@@ -276,33 +257,16 @@ fn a_mirrored_chain_is_the_other_ear_with_the_same_truth_volume() {
     run_ok(&["atlas", "export", s(&exp), "--quiet"]);
     let mut volumes = Vec::new();
     for side in ["right", "left"] {
-        let cases = tmp.path().join(side);
-        run_ok(&[
-            "phantom",
-            "--out",
-            s(&cases),
-            "--seed",
-            "5",
-            "--spacing",
-            "0.3",
-            "--side",
-            side,
-            "--anatomy",
-            s(&exp),
-            "--quiet",
-        ]);
-        let truth: Value = serde_json::from_str(
-            &std::fs::read_to_string(cases.join("case-001/truth.json")).unwrap(),
-        )
-        .unwrap();
+        let case = phantom(&tmp.path().join(side), "5", "0.3", side, &exp);
+        let truth: Value =
+            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap())
+                .unwrap();
         assert_eq!(truth["side"], side);
         assert_eq!(truth["anatomy"]["mirrored"], side == "left");
         // the atlas placed on its own bones (its mesh's surfaces): the ICP ends on them
         let icp = truth["anatomy"]["icp_mean_mm"].as_f64().unwrap();
         assert!(icp < 0.1, "{side}: ICP mean {icp} mm");
-        volumes.push(surface_volume(
-            &cases.join("case-001/segmentation/stapes.ply"),
-        ));
+        volumes.push(surface_volume(&case.join("segmentation/stapes.ply")));
     }
     assert!(
         (volumes[0] - volumes[1]).abs() < 1e-6 * volumes[0],

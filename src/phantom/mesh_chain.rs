@@ -25,7 +25,7 @@ use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
 use crate::mesh::TriMesh;
 use crate::mesh::spatial::{Bvh, SignedSurface};
-use crate::meshdev::structures::read_surface;
+use crate::meshdev::structures::{merge, read_surface};
 use crate::register::landmarks::read_landmarks;
 use crate::register::rigid::{SimilarityTransform, fit_similarity};
 
@@ -208,18 +208,6 @@ impl ChainAnatomy {
             },
         }
     }
-
-    /// Every part in one mesh.
-    fn union(&self) -> TriMesh {
-        let mut all = TriMesh::default();
-        for (_, m) in &self.parts {
-            let base = all.vertices.len() as u32;
-            all.vertices.extend_from_slice(&m.vertices);
-            all.triangles
-                .extend(m.triangles.iter().map(|t| t.map(|k| k + base)));
-        }
-        all
-    }
 }
 
 /// How the atlas was placed on the chain (truth.json's `anatomy` record).
@@ -261,7 +249,7 @@ impl MeshChain {
         };
         let fit = fit_similarity(&atlas.landmarks().points(), &chain.landmarks.points(), true)
             .ok_or_else(|| surface_error("the chain's landmarks are collinear".into()))?;
-        let union = chain.union();
+        let union = merge(&chain.parts.iter().map(|(_, m)| m).collect::<Vec<_>>());
         let bvh = Bvh::new(&union, "chain").map_err(|e| surface_error(e.to_string()))?;
         let plain = PatientAnatomy::plain(atlas);
         let samples: Vec<Point3<f64>> = ossicle_surfaces(&plain)

@@ -19,11 +19,12 @@
 //! the deformable stage, so the FEM regularises the bones' shape, not their articulation.
 
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Vector3};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::atlas_fit::probe_triangles_by_part;
-use super::deform::{DeformConfig, ProbeConfig, ProbeTriangle, probe, screen, triangle_neighbours};
+use super::deform::{
+    DeformConfig, ProbeConfig, ProbeTriangle, probe_surface, screen, triangle_neighbours,
+};
 use crate::atlas::{Atlas, Part};
 use crate::ear::LandmarkName;
 use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
@@ -170,24 +171,10 @@ pub fn articulate(
         let x: Vec<Point3<f64>> = (0..n)
             .map(|v| owner[v].map_or(placed[v], |k| motions[k].apply(&placed[v])))
             .collect();
-        let found: Vec<_> = triangles
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.nodes.map(|k| x[k as usize]);
-                let cross = (b - a).cross(&(c - a));
-                let area = 0.5 * cross.norm();
-                if area <= 0.0 {
-                    return None;
-                }
-                let centre = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                let normal = cross / (2.0 * area);
-                probe(sampler, &centre, &normal, t.kind, step, &probe_cfg)
-                    .map(|bd| (bd, area, centre, normal))
-            })
-            .collect();
+        let found = probe_surface(&triangles, &x, sampler, step, &probe_cfg);
         let borders: Vec<_> = found
             .iter()
-            .map(|f| f.map(|(bd, a, _, _)| (bd, a)))
+            .map(|f| f.map(|p| (p.border, p.area)))
             .collect();
         let kept = screen(&borders, &neighbours, deform.neighbour_tolerance_mm);
         // normal equations of the 18 unknowns (ω, v per bone)
@@ -195,17 +182,17 @@ pub fn articulate(
         let mut g = DVector::<f64>::zeros(18);
         let (mut sum_offset, mut used) = (0.0, 0usize);
         for ((bone, _), (f, k)) in probes.iter().zip(found.iter().zip(&kept)) {
-            let (Some((bd, area, centre, normal)), true) = (f, *k) else {
+            let (Some(p), true) = (f, *k) else {
                 continue;
             };
-            let o = bd.offset_mm;
+            let (o, area, centre, normal) = (p.border.offset_mm, p.area, p.centre, p.normal);
             sum_offset += o.abs();
             used += 1;
             let w = area / (1.0 + (o / CAUCHY_MM).powi(2));
             // d(n·Δ)/dω = (r × n), d/dv = n, with r from the bone's current pivot
             let r = centre - (motions[*bone].pivot + motions[*bone].translation);
             let mut j = [0.0; 6];
-            let rn = r.cross(normal);
+            let rn = r.cross(&normal);
             j[..3].copy_from_slice(rn.as_slice());
             j[3..].copy_from_slice(normal.as_slice());
             let base = 6 * bone;

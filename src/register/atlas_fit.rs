@@ -153,7 +153,7 @@ pub fn deform_atlas(
             break;
         }
         rest = level.positions.clone();
-        let stop = !matches!(level.status, DeformStatus::Converged);
+        let stop = !matches!(level.status, DeformStatus::Converged { .. });
         result = Some(match result {
             None => level,
             Some(mut all) => {

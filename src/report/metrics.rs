@@ -91,6 +91,8 @@ pub struct Iteration {
 struct Status {
     status: String,
     message: Option<String>,
+    reason: Option<String>,
+    mean_offset_mm: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -105,6 +107,10 @@ pub struct DeformSummary {
     /// "converged", "max_iterations" or "inversion_guard", with the guard's message.
     pub status: String,
     pub message: Option<String>,
+    /// Why a converged stage stopped ("plateau" or "balance") and its last mean border offset
+    /// [mm] (absent in records made before the stop reason was recorded).
+    pub reason: Option<String>,
+    pub mean_offset_mm: Option<f64>,
     pub history: Vec<Iteration>,
 }
 
@@ -119,6 +125,8 @@ pub fn parse_deform(deform: &Value, case: &str) -> Result<DeformSummary, ReportE
     Ok(DeformSummary {
         status: doc.status.status,
         message: doc.status.message,
+        reason: doc.status.reason,
+        mean_offset_mm: doc.status.mean_offset_mm,
         history: doc.history,
     })
 }

@@ -34,6 +34,24 @@ pub fn testdata(rel: &str) -> Option<PathBuf> {
     None
 }
 
+/// The shared anatomy folder (`../shared/anatomy` next to the crate, or
+/// `$OTOATLAS_SHARED_DIR/anatomy`). Returns `None` (and says so) when absent, unless
+/// `OTOATLAS_REQUIRE_SHARED=1`, which turns absence into a failure (CI sets it).
+pub fn shared_anatomy() -> Option<PathBuf> {
+    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("../shared"));
+    let dir = shared.join("anatomy");
+    if dir.join("sofa-ossicles/Ossicles.vtu").is_file() {
+        return Some(dir);
+    }
+    if std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() == Ok("1") {
+        panic!("{} is missing and OTOATLAS_REQUIRE_SHARED=1", dir.display());
+    }
+    eprintln!("skipped: {} not present", dir.display());
+    None
+}
+
 /// Runs the otoatlas binary with `args`.
 pub fn otoatlas(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_otoatlas"))

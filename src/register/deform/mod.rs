@@ -102,11 +102,28 @@ pub struct IterationStats {
     pub spring_scale: f64,
 }
 
+/// Why a converged stage stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The mean border offset stopped falling (by 2 % over 3 iterations): the borders the
+    /// probes find jitter by a fraction of a voxel, so the surface is as close as it gets.
+    Plateau,
+    /// The nodes stopped moving (99 % under the tolerance) while the mean border offset was
+    /// still falling: the FEM and the springs balance (see `mean_offset_mm` for how far from
+    /// the image).
+    Balance,
+}
+
 /// How the stage ended.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "status", rename_all = "snake_case")]
 pub enum DeformStatus {
-    Converged,
+    Converged {
+        reason: StopReason,
+        /// Mean border offset of the last iteration [mm].
+        mean_offset_mm: f64,
+    },
     MaxIterations,
     /// No admissible (non-inverting) step existed; the last valid state is returned.
     InversionGuard {
@@ -161,27 +178,11 @@ pub fn deform(
     let (mut best_offset, mut stalled) = (f64::INFINITY, 0usize);
     let mut spring_scale = vec![1.0f64; n];
     for iteration in 1..=cfg.max_iterations {
-        let borders: Vec<Option<(Border, f64)>> = probes
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.nodes.map(|k| x[k as usize]);
-                let cross = (b - a).cross(&(c - a));
-                let area = 0.5 * cross.norm();
-                if area <= 0.0 {
-                    return None;
-                }
-                let centre = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                probe(
-                    sampler,
-                    &centre,
-                    &(cross / (2.0 * area)),
-                    t.kind,
-                    step,
-                    &cfg.probe,
-                )
-                .map(|bd| (bd, area))
-            })
-            .collect();
+        let borders: Vec<Option<(Border, f64)>> =
+            probe_surface(probes, &x, sampler, step, &cfg.probe)
+                .into_iter()
+                .map(|f| f.map(|p| (p.border, p.area)))
+                .collect();
         let found = borders.iter().filter(|b| b.is_some()).count();
         if iteration == 1 && found == 0 {
             return Err(DeformError::NothingFound);
@@ -247,8 +248,18 @@ pub fn deform(
             0
         };
         best_offset = best_offset.min(mean_offset);
-        if p99_update < cfg.tolerance_mm || stalled >= PLATEAU_ITERATIONS {
-            status = DeformStatus::Converged;
+        let reason = if stalled >= PLATEAU_ITERATIONS {
+            Some(StopReason::Plateau)
+        } else if p99_update < cfg.tolerance_mm {
+            Some(StopReason::Balance)
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            status = DeformStatus::Converged {
+                reason,
+                mean_offset_mm: mean_offset,
+            };
             break;
         }
     }
@@ -258,6 +269,46 @@ pub fn deform(
         history,
         status,
     })
+}
+
+/// A border found from one surface triangle: the border, the triangle's area, centre and
+/// outward unit normal (with the nodes where they were probed from).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Probed {
+    pub border: Border,
+    pub area: f64,
+    pub centre: Point3<f64>,
+    pub normal: Vector3<f64>,
+}
+
+/// Probes the image from the centre of every triangle of `probes` (nodes at `x`) along its
+/// outward normal; `None` where nothing was found or the triangle is degenerate.
+pub(crate) fn probe_surface(
+    probes: &[ProbeTriangle],
+    x: &[Point3<f64>],
+    sampler: &Sampler,
+    step: f64,
+    cfg: &ProbeConfig,
+) -> Vec<Option<Probed>> {
+    probes
+        .par_iter()
+        .map(|t| {
+            let [a, b, c] = t.nodes.map(|k| x[k as usize]);
+            let cross = (b - a).cross(&(c - a));
+            let area = 0.5 * cross.norm();
+            if area <= 0.0 {
+                return None;
+            }
+            let centre = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+            let normal = cross / (2.0 * area);
+            probe(sampler, &centre, &normal, t.kind, step, cfg).map(|border| Probed {
+                border,
+                area,
+                centre,
+                normal,
+            })
+        })
+        .collect()
 }
 
 /// Halves the springs of the nodes within [`SOFTEN_RADIUS_MM`] of `element` (a membrane

@@ -19,7 +19,21 @@ pub(super) fn verdict(
 ) {
     page.heading("Verdict");
     match deform.status.as_str() {
-        "converged" => page.paragraph("The deformable registration converged.", Some("ok")),
+        "converged" => {
+            let why = match (deform.reason.as_deref(), deform.mean_offset_mm) {
+                (Some("plateau"), Some(o)) => format!(
+                    " (stop: the mean distance to the bone borders stopped falling, at {o:.3} mm)"
+                ),
+                (Some("balance"), Some(o)) => format!(
+                    " (stop: the FEM and the springs balance, {o:.3} mm on average from the bone borders)"
+                ),
+                _ => String::new(),
+            };
+            page.paragraph(
+                &format!("The deformable registration converged{why}."),
+                Some("ok"),
+            )
+        }
         other => page.paragraph(
             &format!(
                 "The deformable registration did not converge ({other}{}): check the overlays.",
