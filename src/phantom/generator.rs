@@ -518,6 +518,13 @@ mod tests {
             ..PhantomOptions::default()
         };
         assert!(matches!(o.check(), Err(PhantomError::Noise(_))));
+        for blur in [-0.1, 1.5, f64::INFINITY] {
+            let o = PhantomOptions {
+                blur_mm: Some(blur),
+                ..PhantomOptions::default()
+            };
+            assert!(matches!(o.check(), Err(PhantomError::Blur(_))), "{blur}");
+        }
         assert!(PhantomOptions::default().check().is_ok());
     }
 }
