@@ -143,16 +143,7 @@ fn package_commands(package: &std::path::Path, manifest: &serde_json::Value) {
 #[test]
 fn validation_can_be_switched_off() {
     let dir = tempfile::tempdir().unwrap();
-    let default = std::fs::read_to_string(common::root().join("pipeline.toml")).unwrap();
-    let at = default.find("\n[validate]").unwrap();
-    let (head, tail) = default.split_at(at);
-    let off = format!(
-        "{head}{}",
-        tail.replacen("\nenabled = true", "\nenabled = false", 1)
-    );
-    assert_ne!(off, default);
-    let config = dir.path().join("pipeline.toml");
-    std::fs::write(&config, off).unwrap();
+    let config = common::config_without_validation(dir.path());
     let out = dir.path().join("out");
     // a previous run's verdict must not survive a run without validation
     std::fs::create_dir_all(&out).unwrap();

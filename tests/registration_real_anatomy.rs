@@ -145,18 +145,7 @@ fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
     };
     let tmp = tempfile::tempdir().unwrap();
     // validation of the mechanics is not what this test is about
-    let config = tmp.path().join("pipeline.toml");
-    let text = std::fs::read_to_string(root().join("pipeline.toml")).unwrap();
-    let at = text.find("[validate]").unwrap();
-    let (head, tail) = text.split_at(at);
-    std::fs::write(
-        &config,
-        format!(
-            "{head}{}",
-            tail.replacen("enabled = true", "enabled = false", 1)
-        ),
-    )
-    .unwrap();
+    let config = common::config_without_validation(tmp.path());
     let chains = [
         ("sofa", sofa_chain(&anatomy, tmp.path())),
         ("ct455", ct_chain(&anatomy, tmp.path())),

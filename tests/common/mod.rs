@@ -52,6 +52,22 @@ pub fn shared_anatomy() -> Option<PathBuf> {
     None
 }
 
+/// Writes the repository's `pipeline.toml` with `[validate] enabled = false` (no package
+/// mechanics: faster runs for tests about other stages) as `dir/pipeline.toml`; returns it.
+pub fn config_without_validation(dir: &std::path::Path) -> PathBuf {
+    let default = std::fs::read_to_string(root().join("pipeline.toml")).expect("pipeline.toml");
+    let at = default.find("\n[validate]").expect("a [validate] section");
+    let (head, tail) = default.split_at(at);
+    let off = format!(
+        "{head}{}",
+        tail.replacen("\nenabled = true", "\nenabled = false", 1)
+    );
+    assert_ne!(off, default, "[validate] enabled = true not found");
+    let path = dir.join("pipeline.toml");
+    std::fs::write(&path, off).expect("write the test configuration");
+    path
+}
+
 /// Runs the otoatlas binary with `args`.
 pub fn otoatlas(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_otoatlas"))
