@@ -1,8 +1,8 @@
 //! otoatlas: registers a validated mechanical atlas of the middle ear onto a patient's
 //! cone-beam CT and exports a ready-to-simulate finite-element package.
 //!
-//! World space everywhere is DICOM patient space (LPS) in millimetres; see `DESIGN.md` in the
-//! project's shared notes and the README for the conventions each module keeps.
+//! World space everywhere is DICOM patient space (LPS) in millimetres; see the README
+//! ("Conventions") for the conventions each module keeps.
 
 pub mod atlas;
 pub mod cli;

@@ -9,7 +9,8 @@ use serde_json::json;
 
 use super::Report;
 use crate::phantom::{
-    ChainAnatomy, PhantomError, PhantomOptions, generate_case, generate_chain_case, write_case,
+    ChainAnatomy, ChainPhantoms, PhantomError, PhantomOptions, generate_case, generate_chain_case,
+    write_case,
 };
 use crate::register::Side;
 use crate::{Error, progress};
@@ -87,12 +88,13 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
         blur_mm: args.blur,
     };
     options.check()?;
-    let chain = args
+    let mut chain = args
         .anatomy
         .as_deref()
         .map(ChainAnatomy::load)
         .transpose()
-        .map_err(PhantomError::from)?;
+        .map_err(PhantomError::from)?
+        .map(ChainPhantoms::new);
     check_writable(&args.out)?;
     let bar = progress::Progress::new("phantom", u64::from(args.cases));
     let mut text = String::new();
@@ -100,7 +102,7 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
     for k in 1..=u64::from(args.cases) {
         let start = Instant::now();
         let seed = args.seed.wrapping_add(k - 1);
-        let case = match &chain {
+        let case = match &mut chain {
             Some(chain) => generate_chain_case(seed, &options, chain)?,
             None => generate_case(seed, &options)?,
         };

@@ -255,25 +255,58 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
     Ok(made)
 }
 
-/// Generates the case of `seed` whose ossicles are the real `chain` (mirrored to the side
-/// drawn or asked for): no ossicle motions, shape detail, scale or deformation of its own (its
-/// size is its own), only pose, side, imaging and pick noise are drawn.
+/// A real chain to make phantoms of: its placement in the atlas frame (landmark fit and ICP,
+/// the same for every case of one side) is made once per side, when first needed.
+pub struct ChainPhantoms {
+    chain: ChainAnatomy,
+    /// The placement on the right, then on the left side.
+    placed: [Option<MeshChain>; 2],
+}
+
+impl ChainPhantoms {
+    pub fn new(chain: ChainAnatomy) -> ChainPhantoms {
+        ChainPhantoms {
+            chain,
+            placed: [None, None],
+        }
+    }
+
+    /// The chain placed on `side` (mirrored when it is the other ear).
+    fn placed(&mut self, side: Side, seed: u64) -> Result<&MeshChain, PhantomError> {
+        let slot = &mut self.placed[match side {
+            Side::Right => 0,
+            Side::Left => 1,
+        }];
+        let placed = match slot.take() {
+            Some(placed) => placed,
+            None => {
+                let mirrored = side != self.chain.side;
+                let chain = if mirrored {
+                    self.chain.mirrored()
+                } else {
+                    self.chain.clone()
+                };
+                let atlas =
+                    side_anatomy(side).map_err(|source| PhantomError::Anatomy { seed, source })?;
+                MeshChain::place(&chain, atlas, mirrored)?
+            }
+        };
+        Ok(slot.insert(placed))
+    }
+}
+
+/// Generates the case of `seed` whose ossicles are the real chain of `chains` (mirrored to the
+/// side drawn or asked for): no ossicle motions, shape detail, scale or deformation of its own
+/// (its size is its own), only pose, side, imaging and pick noise are drawn.
 pub fn generate_chain_case(
     seed: u64,
     options: &PhantomOptions,
-    chain: &ChainAnatomy,
+    chains: &mut ChainPhantoms,
 ) -> Result<PhantomCase, PhantomError> {
     options.check()?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (side, spacing) = draw_side_and_spacing(&mut rng, options);
-    let invalid = |source| PhantomError::Anatomy { seed, source };
-    let mirrored = side != chain.side;
-    let chain = if mirrored {
-        chain.mirrored()
-    } else {
-        chain.clone()
-    };
-    let placed = MeshChain::place(&chain, side_anatomy(side).map_err(invalid)?, mirrored)?;
+    let placed = chains.placed(side, seed)?;
     let warp = PatientWarp {
         scale: placed.placement().atlas_to_chain.scale,
         deformation: Deformation { modes: Vec::new() },
@@ -282,13 +315,13 @@ pub fn generate_chain_case(
     };
     let cavity = draw_cavity(&mut rng);
     let imaging_seed: u64 = rng.random();
-    let scene = EarScene::new(&placed, TissueLevels::default(), cavity.clone())
+    let scene = EarScene::new(placed, TissueLevels::default(), cavity.clone())
         .with_footplate(placed.footplate().clone());
     let case = Imaged {
         seed,
         side,
         spacing,
-        chain: &placed,
+        chain: placed,
         scene,
         bones: placed
             .meshes()
@@ -330,7 +363,7 @@ fn side_anatomy(side: Side) -> Result<Anatomy, AnatomyError> {
     let right = Anatomy::default_right()?;
     match side {
         Side::Right => Ok(right),
-        Side::Left => Anatomy::from_spec(right.spec().mirrored(), "<atlas mirrored to left>"),
+        Side::Left => right.mirrored(),
     }
 }
 

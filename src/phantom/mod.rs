@@ -17,6 +17,7 @@ pub mod warp;
 
 pub use case_writer::write_case;
 pub use generator::{
-    PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case, generate_chain_case,
+    ChainPhantoms, PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case,
+    generate_chain_case,
 };
 pub use mesh_chain::{ChainAnatomy, ChainError};
