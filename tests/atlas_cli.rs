@@ -522,34 +522,17 @@ fn import_rejects_undeclared_tags_and_landmarks_off_the_mesh() {
 }
 
 /// `../shared/anatomy/sofa-ossicles` (or `$OTOATLAS_SHARED_DIR/anatomy/...`), if present.
-fn sofa_dir() -> Option<PathBuf> {
-    common::shared_anatomy().map(|d| d.join("sofa-ossicles"))
-}
-
 #[test]
 fn the_sofa_chain_imports_into_a_usable_atlas() {
-    let Some(sofa) = sofa_dir() else { return };
-    let fixtures = common::root().join("tests/atlas_cli");
+    let Some(anatomy) = common::shared_anatomy() else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sofa");
+    let args = common::sofa_import_args(&anatomy, &out);
     let (code, report) = json_in(
         tmp.path(),
-        &[
-            "atlas",
-            "import",
-            "--mesh",
-            path_str(&sofa.join("Ossicles.vtu")),
-            "--labels",
-            path_str(&sofa.join("Ossicles_tet_labels.txt")),
-            "--mapping",
-            path_str(&fixtures.join("sofa-ossicles.mapping.toml")),
-            "--landmarks",
-            path_str(&fixtures.join("sofa-ossicles.landmarks.json")),
-            "--name",
-            "sofa",
-            "--out",
-            path_str(&out),
-        ],
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
     );
     assert_eq!(code, 0, "{report}");
     let (code, info) = json_in(tmp.path(), &["atlas", "info", "--atlas", path_str(&out)]);

@@ -20,7 +20,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{otoatlas, otoatlas_json, root, shared_anatomy};
+use common::{otoatlas, otoatlas_json, shared_anatomy};
 use serde_json::Value;
 
 /// The CT chain's landmarks in its OBJ frame (mm, LPS as a right ear).
@@ -70,26 +70,10 @@ fn phantom(out: &Path, seed: &str, spacing: &str, side: &str, chain: &Path) -> P
 
 /// The SOFA chain as per-ossicle surfaces with its landmarks.
 fn sofa_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
-    let sofa = anatomy.join("sofa-ossicles");
-    let fixtures = root().join("tests/atlas_cli");
     let atlas = tmp.join("sofa-atlas");
-    run_ok(&[
-        "atlas",
-        "import",
-        "--mesh",
-        s(&sofa.join("Ossicles.vtu")),
-        "--labels",
-        s(&sofa.join("Ossicles_tet_labels.txt")),
-        "--mapping",
-        s(&fixtures.join("sofa-ossicles.mapping.toml")),
-        "--landmarks",
-        s(&fixtures.join("sofa-ossicles.landmarks.json")),
-        "--name",
-        "sofa",
-        "--out",
-        s(&atlas),
-        "--quiet",
-    ]);
+    let mut args = common::sofa_import_args(anatomy, &atlas);
+    args.push("--quiet".into());
+    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     let chain = tmp.join("sofa");
     run_ok(&[
         "atlas",

@@ -52,6 +52,30 @@ pub fn shared_anatomy() -> Option<PathBuf> {
     None
 }
 
+/// The arguments of `otoatlas atlas import` for SOFA's chain (`anatomy` from
+/// [`shared_anatomy`]) with the repository's region mapping and landmarks, into `out`.
+pub fn sofa_import_args(anatomy: &std::path::Path, out: &std::path::Path) -> Vec<String> {
+    let sofa = anatomy.join("sofa-ossicles");
+    let fixtures = root().join("tests/atlas_cli");
+    let path = |p: PathBuf| p.to_string_lossy().into_owned();
+    vec![
+        "atlas".into(),
+        "import".into(),
+        "--mesh".into(),
+        path(sofa.join("Ossicles.vtu")),
+        "--labels".into(),
+        path(sofa.join("Ossicles_tet_labels.txt")),
+        "--mapping".into(),
+        path(fixtures.join("sofa-ossicles.mapping.toml")),
+        "--landmarks".into(),
+        path(fixtures.join("sofa-ossicles.landmarks.json")),
+        "--name".into(),
+        "sofa".into(),
+        "--out".into(),
+        path(out.to_path_buf()),
+    ]
+}
+
 /// Writes the repository's `pipeline.toml` with `[validate] enabled = false` (no package
 /// mechanics: faster runs for tests about other stages) as `dir/pipeline.toml`; returns it.
 pub fn config_without_validation(dir: &std::path::Path) -> PathBuf {

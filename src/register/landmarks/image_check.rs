@@ -5,15 +5,13 @@
 //! triangles, and nearer: a swapped pair turns the chain by tens of degrees about the third
 //! landmark, so most of its surface then lies in air or in the wrong bone.
 
-use nalgebra::Point3;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
 use crate::register::atlas_fit::{fit_landmarks, place, probe_triangles};
-use crate::register::deform::{ProbeConfig, probe};
+use crate::register::deform::{ProbeConfig, probe_surface};
 
 /// The image and what places and probes the atlas in it.
 #[derive(Debug, Clone, Copy)]
@@ -57,28 +55,12 @@ impl ImageCheck<'_> {
         let fit = fit_landmarks(self.atlas, landmarks, self.with_scale)?;
         let nodes = place(self.atlas, &fit);
         let triangles = probe_triangles(self.atlas);
-        let offsets: Vec<Option<f64>> = triangles
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.nodes.map(|k| nodes[k as usize]);
-                let cross = (b - a).cross(&(c - a));
-                let norm = cross.norm();
-                if norm <= 0.0 {
-                    return None;
-                }
-                let centre = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                probe(
-                    self.sampler,
-                    &centre,
-                    &(cross / norm),
-                    t.kind,
-                    self.step_mm,
-                    self.probe,
-                )
-                .map(|border| border.offset_mm.abs())
-            })
+        let probed = probe_surface(&triangles, &nodes, self.sampler, self.step_mm, self.probe);
+        let found: Vec<f64> = probed
+            .iter()
+            .flatten()
+            .map(|p| p.border.offset_mm.abs())
             .collect();
-        let found: Vec<f64> = offsets.iter().flatten().copied().collect();
         if triangles.is_empty() {
             return None;
         }
