@@ -4,7 +4,11 @@
 //! Composition, in priority order (an earlier structure wins where two overlap, and the
 //! signed distance of a later one is carved by every earlier one, `max(d, -d_earlier)`, so
 //! that `label(p) = r` exactly when `signed_distance(r, p) < 0`):
-//! 1. the two joints (thin elliptic discs between the bones);
+//! 1. the two joints: each a layer of its `thickness` around the interface of its two bones
+//!    (their bisector), where the bones overlap or come within half a thickness of each
+//!    other, inside the elliptic footprint of its disc (`JOINT_HALF_DEPTH_MM` either side of
+//!    the disc's plane). The layer follows the bones' own interface, so that outside the
+//!    joints no two ossicles touch, however curved the articular facets;
 //! 2. the bones (malleus, incus, stapes): each a smooth union (polynomial `smin`) of its
 //!    primitives; where two bones overlap, the point belongs to the bone it is deeper in
 //!    (bisector `(d_k - d_j) / 2`); inside a bone a point belongs to the part (Table 1 row) of
@@ -101,6 +105,13 @@ const BANDS: [Region; 6] = [
     Region::TensorTympaniTendon,
     Region::StapediusTendon,
 ];
+
+/// How far a joint's layer may lie from its disc's plane, along the normal (mm): the
+/// articular facets are curved (the incudomalleolar joint is a saddle).
+pub const JOINT_HALF_DEPTH_MM: f64 = 0.6;
+
+/// The two bones each joint connects (indices into the bones), in `JOINTS` order.
+const JOINT_BONES: [[usize; 2]; 2] = [[0, 1], [1, 2]];
 
 /// Margin added around the primitives' bounds (mm).
 const BOUNDS_MARGIN: f64 = 0.5;
@@ -201,7 +212,15 @@ impl Anatomy {
         let boxes = bones
             .iter()
             .flat_map(|b| b.parts.iter().map(|(_, p)| p.bounds()))
-            .chain(joints.iter().map(|d| Primitive::Disc(d.clone()).bounds()))
+            .chain(joints.iter().map(|d| {
+                let r = d.semi_axes[0]
+                    .max(d.semi_axes[1])
+                    .hypot(JOINT_HALF_DEPTH_MM);
+                (
+                    d.center - Vector3::from_element(r),
+                    d.center + Vector3::from_element(r),
+                )
+            }))
             .chain(bands.iter().map(|t| Primitive::Tube(t.clone()).bounds()));
         for (a, b) in boxes {
             lo = lo.inf(&a);
@@ -294,8 +313,25 @@ impl Anatomy {
         self.bones[k].distance(p)
     }
 
+    /// Signed distance to joint `k`: its footprint, the layer of its thickness around the
+    /// bisector of its two bones, and no farther than half a thickness outside both bones.
+    fn joint_distance(&self, k: usize, p: &Point3<f64>) -> f64 {
+        let disc = &self.joints[k];
+        let footprint = Disc {
+            thickness: 2.0 * JOINT_HALF_DEPTH_MM,
+            ..disc.clone()
+        }
+        .distance(p);
+        let [a, b] = JOINT_BONES[k];
+        let (da, db) = (self.bones[a].distance(p), self.bones[b].distance(p));
+        let half = 0.5 * disc.thickness;
+        let layer = 0.5 * (da - db).abs() - half;
+        let near = da.min(db) - half;
+        footprint.max(layer).max(near)
+    }
+
     fn joints_distance(&self, p: &Point3<f64>) -> f64 {
-        self.joints[0].distance(p).min(self.joints[1].distance(p))
+        self.joint_distance(0, p).min(self.joint_distance(1, p))
     }
 }
 
@@ -309,8 +345,8 @@ impl LabelledDomain for Anatomy {
     }
 
     fn label(&self, p: &Point3<f64>) -> u16 {
-        for (r, j) in JOINTS.iter().zip(&self.joints) {
-            if j.distance(p) < 0.0 {
+        for (k, r) in JOINTS.iter().enumerate() {
+            if self.joint_distance(k, p) < 0.0 {
                 return r.label();
             }
         }
@@ -337,9 +373,9 @@ impl LabelledDomain for Anatomy {
             return f64::INFINITY;
         };
         if let Some(k) = JOINTS.iter().position(|r| *r == region) {
-            return self.joints[..k]
-                .iter()
-                .fold(self.joints[k].distance(p), |d, j| d.max(-j.distance(p)));
+            return (0..k).fold(self.joint_distance(k, p), |d, j| {
+                d.max(-self.joint_distance(j, p))
+            });
         }
         let carve_joints = -self.joints_distance(p);
         if let Some(bone) = region.bone() {

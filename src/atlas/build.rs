@@ -8,9 +8,11 @@ use std::collections::BTreeMap;
 
 use nalgebra::Point3;
 
+use super::joint_layer::{JointLayer, joint_layers};
 use super::materials::{
     ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
-    DAMPING_SOURCE, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
+    DAMPING_SOURCE, ISJ_DENSITY_KG_M3, ISJ_SOURCE, ISJ_YOUNG_PA, POISSON, RAYLEIGH, Structure,
+    TABLE1, membrane_thickness_mm,
 };
 use super::membrane::{MembraneMesh, triangulate_eardrum};
 use super::model::{
@@ -59,6 +61,7 @@ pub fn build_atlas(
 ) -> Result<Atlas, BuildError> {
     let mut tets = mesh_anatomy(anatomy, edge_mm)?.mesh;
     tets.orient_positive();
+    let layers = joint_layers(&tets, anatomy).map_err(assembly)?;
     let drum = anatomy.eardrum();
     let membrane = triangulate_eardrum(drum, membrane_edge_mm);
     let merged = attach_membrane(&mut tets, &membrane, drum.medial_normal)?;
@@ -69,6 +72,18 @@ pub fn build_atlas(
     provenance.insert("anatomy_sha256".into(), anatomy_digest(anatomy));
     provenance.insert("tet_edge_mm".into(), edge_mm.to_string());
     provenance.insert("membrane_edge_mm".into(), membrane_edge_mm.to_string());
+    for layer in &layers {
+        provenance.insert(
+            format!("layer:{}", layer.region.name()),
+            format!(
+                "{:.3} mm thick in the mesh ({:.3} mm3 over {:.3} mm2) for {:.3} mm in the anatomy",
+                layer.mesh_thickness_mm(),
+                layer.volume_mm3,
+                layer.area_mm2,
+                layer.anatomical_thickness_mm
+            ),
+        );
+    }
     provenance.insert(
         "manubrium_attachment".into(),
         format!(
@@ -81,7 +96,7 @@ pub fn build_atlas(
         side: anatomy.side(),
         mesh: merged.mesh,
         regions: regions(),
-        materials: materials(),
+        materials: materials(&layers),
         damping: Damping {
             rayleigh_alpha_per_s: RAYLEIGH.alpha_per_s,
             rayleigh_beta_s: RAYLEIGH.beta_s,
@@ -140,10 +155,22 @@ fn regions() -> Vec<RegionInfo> {
 }
 
 /// One material per Table 1 row, named after its region.
-fn materials() -> BTreeMap<String, MaterialInfo> {
+/// The materials of Table 1 (the incudostapedial joint's from [W16], `materials`), each joint's
+/// modulus scaled to its layer's thickness in the mesh (`JointLayer::stiffness_scale`).
+fn materials(layers: &[JointLayer]) -> BTreeMap<String, MaterialInfo> {
     TABLE1
         .iter()
         .map(|(structure, rho, e)| {
+            let (rho, e, table_source) = match structure {
+                Structure::Volume(Region::IncudostapedialJoint) => {
+                    (ISJ_DENSITY_KG_M3, ISJ_YOUNG_PA, ISJ_SOURCE)
+                }
+                _ => (*rho, *e, "Kazmitcheff et al. 2013, Table 1"),
+            };
+            let layer = layers
+                .iter()
+                .find(|l| Structure::Volume(l.region) == *structure);
+            let e = e * layer.map_or(1.0, JointLayer::stiffness_scale);
             let (poisson, poisson_source) = match structure {
                 Structure::Volume(_) => (
                     POISSON,
@@ -161,14 +188,24 @@ fn materials() -> BTreeMap<String, MaterialInfo> {
                     "density: Kazmitcheff et al. 2013 Table 1; E: Koike, Wada & Kobayashi 2002, \
                      J Acoust Soc Am 111:1306 (via Gentil et al. 2016, Table 1)",
                 ),
-                Structure::Volume(r) => (r.name(), "Kazmitcheff et al. 2013, Table 1"),
-                Structure::Membrane(m) => (m.name(), "Kazmitcheff et al. 2013, Table 1"),
+                Structure::Volume(r) => (r.name(), table_source),
+                Structure::Membrane(m) => (m.name(), table_source),
+            };
+            let source = match layer {
+                Some(l) => format!(
+                    "{source}, x {:.3}: the layer is {:.3} mm thick in the mesh for {:.3} mm in \
+                     the anatomy (same stiffness per area)",
+                    l.stiffness_scale(),
+                    l.mesh_thickness_mm(),
+                    l.anatomical_thickness_mm
+                ),
+                None => source.to_string(),
             };
             (
                 name.to_string(),
                 MaterialInfo {
-                    density_kg_m3: *rho,
-                    youngs_modulus_pa: *e,
+                    density_kg_m3: rho,
+                    youngs_modulus_pa: e,
                     poisson_ratio: poisson,
                     source: format!("{source}; {poisson_source}"),
                 },

@@ -12,6 +12,7 @@ pub mod eardrum;
 pub mod export;
 pub mod format;
 pub mod import;
+pub mod joint_layer;
 pub mod mapping;
 pub mod materials;
 pub mod membrane;

@@ -97,6 +97,14 @@ impl Region {
 }
 
 impl Bone {
+    pub fn name(self) -> &'static str {
+        match self {
+            Bone::Malleus => "malleus",
+            Bone::Incus => "incus",
+            Bone::Stapes => "stapes",
+        }
+    }
+
     /// The regions making up the bone.
     pub fn regions(self) -> &'static [Region] {
         match self {

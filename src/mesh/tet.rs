@@ -146,6 +146,32 @@ impl TetMesh {
         }
     }
 
+    /// Every face shared by two tets: its sorted node triple and the two tets (lower index
+    /// first), in order of the first tet and its faces (deterministic).
+    pub fn interior_faces(&self) -> Vec<([u32; 3], usize, usize)> {
+        let mut first: HashMap<[u32; 3], usize> = HashMap::new();
+        let mut out = Vec::new();
+        for (t, tet) in self.tets.iter().enumerate() {
+            for f in &TET_FACES {
+                let mut k = f.map(|i| tet[i]);
+                k.sort_unstable();
+                match first.remove(&k) {
+                    Some(s) => out.push((k, s, t)),
+                    None => {
+                        first.insert(k, t);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Area of the triangle on three nodes.
+    pub fn face_area(&self, face: &[u32; 3]) -> f64 {
+        let [a, b, c] = face.map(|n| self.nodes[n as usize]);
+        0.5 * (b - a).cross(&(c - a)).norm()
+    }
+
     /// The boundary surface of the whole mesh or of one region, outward oriented.
     ///
     /// Triangles come in tet order and face order, vertices in order of first use, so the

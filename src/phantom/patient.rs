@@ -9,6 +9,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::variability::{DETAILED_LIPSCHITZ, Ossicle, ShapeDetail};
+use crate::atlas::anatomy::JOINT_HALF_DEPTH_MM;
 use crate::atlas::{Anatomy, Region};
 use crate::mesh::LabelledDomain;
 
@@ -152,7 +153,9 @@ impl PatientAnatomy {
         let spec = anatomy.spec();
         let mut joint_box = Aabb::empty();
         for d in [&spec.joints.incudomalleolar, &spec.joints.incudostapedial] {
-            let r = d.semi_axes[0].max(d.semi_axes[1]).max(0.5 * d.thickness);
+            let r = d.semi_axes[0]
+                .max(d.semi_axes[1])
+                .hypot(JOINT_HALF_DEPTH_MM);
             joint_box.add(&Vector3::from(d.center), r);
         }
         let band_boxes = BANDS
