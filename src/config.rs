@@ -219,13 +219,13 @@ mod tests {
     fn a_bad_landmark_band_is_rejected_by_name() {
         for (from, to, key) in [
             (
-                "umbo_isj_typical_mm = [2.1, 4.4]",
-                "umbo_isj_typical_mm = [4.4, 2.1]",
+                "umbo_isj_typical_mm = [2.1, 3.35]",
+                "umbo_isj_typical_mm = [3.35, 2.1]",
                 "landmarks.umbo_isj_typical_mm",
             ),
             (
-                "imj_isj_possible_mm = [3.5, 7.2]",
-                "imj_isj_possible_mm = [3.5, nan]",
+                "imj_isj_possible_mm = [3.0, 7.2]",
+                "imj_isj_possible_mm = [3.0, nan]",
                 "landmarks.imj_isj_possible_mm",
             ),
             (
