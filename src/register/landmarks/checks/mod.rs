@@ -7,7 +7,8 @@
 //!
 //! The bands are anatomical (docs/anatomy.md, "Landmark distance bands"), in mm, independent of
 //! the atlas: people's chains differ from the atlas's by far more than any one scale explains
-//! (five real chains have umbo-ISJ 2.4-2.9 mm where the atlas has 3.69 mm).
+//! (five real chains have umbo-ISJ 2.4-2.9 mm where the atlas had 3.69 mm before its ISJ
+//! was put at the joint; it now has 2.77 mm).
 //!
 //! Exchanging two labels keeps their own distance and exchanges the two distances to the third
 //! landmark. The distances suggest a swap when the given labelling has a distance outside its

@@ -21,9 +21,9 @@ fn triangle(a: f64, b: f64, c: f64) -> Landmarks {
     Landmarks::from_points(local.map(|p| Point3::from(r * p.coords + t)))
 }
 
-/// The atlas's triangle as issue 20 gives it.
+/// The default atlas's triangle (docs/anatomy.md).
 fn atlas() -> Landmarks {
-    triangle(5.15, 3.69, 4.74)
+    triangle(5.39, 2.77, 4.13)
 }
 
 fn check(l: &Landmarks) -> Result<Vec<LandmarkWarning>, LandmarkError> {
@@ -55,7 +55,7 @@ fn the_atlas_passes_without_warning() {
 }
 
 /// Issue 20: five real chains measure umbo-IMJ 5.2-6.3, umbo-ISJ 2.4-2.9, IMJ-ISJ 4.4-5.1
-/// mm; SOFA's 5.49 / 3.32 / 4.30 mm. Every corner of that box passes; only the flattest
+/// mm; SOFA's 5.50 / 2.97 / 3.98 mm. Every corner of that box passes; only the flattest
 /// corners (smallest height under 1.5 mm) are warned about.
 #[test]
 fn real_chains_pass() {
@@ -72,7 +72,7 @@ fn real_chains_pass() {
             }
         }
     }
-    assert_eq!(check(&triangle(5.49, 3.32, 4.30)).unwrap(), vec![]);
+    assert_eq!(check(&triangle(5.50, 2.97, 3.98)).unwrap(), vec![]);
     // the case issue 20 quotes as refused: umbo-ISJ 2.87 mm
     assert_eq!(check(&triangle(5.6, 2.87, 4.6)).unwrap(), vec![]);
 }
@@ -88,7 +88,7 @@ fn a_flat_triangle_is_a_warning_with_its_height() {
     }
     let text = w[0].to_string();
     assert!(
-        text.contains("1.21 mm") && text.contains("3.27 mm"),
+        text.contains("1.21 mm") && text.contains("2.08 mm"),
         "{text}"
     );
 }
@@ -98,7 +98,7 @@ fn an_unusual_distance_is_a_warning_with_its_band_and_the_atlas() {
     let w = check(&triangle(4.9, 1.93, 4.3)).unwrap();
     assert_eq!(kinds(&w), ["unusual umbo-ISJ"]);
     let text = w[0].to_string();
-    for needle in ["1.93 mm", "2.10-4.40 mm", "1.50-5.00 mm", "3.69 mm"] {
+    for needle in ["1.93 mm", "2.10-3.35 mm", "1.50-5.00 mm", "2.77 mm"] {
         assert!(text.contains(needle), "{needle}: {text}");
     }
 }
@@ -141,7 +141,7 @@ fn a_distance_beyond_its_possible_band_is_refused() {
         Err(e @ LandmarkError::OutsideBand { .. }) => {
             let text = e.to_string();
             assert!(
-                text.contains("IMJ-ISJ is 7.60 mm") && text.contains("3.50 to 7.20 mm"),
+                text.contains("IMJ-ISJ is 7.60 mm") && text.contains("3.00 to 7.20 mm"),
                 "{text}"
             );
             assert!(!text.contains("exchanged"), "{text}");
@@ -158,11 +158,12 @@ fn a_distance_beyond_its_possible_band_is_refused() {
     ));
 }
 
-/// Umbo and IMJ exchanged on the atlas: umbo-ISJ 4.74 and IMJ-ISJ 3.69 mm, both possible
-/// but not typical; exchanged back, all typical. Without an image it is only a warning.
+/// Umbo and IMJ exchanged on a chain of 5.2 / 3.3 / 4.4 mm: umbo-ISJ 4.4 and IMJ-ISJ 3.3 mm,
+/// both possible but not typical; exchanged back, all typical. Without an image it is only a
+/// warning.
 #[test]
 fn a_swap_only_the_distances_suggest_is_a_warning() {
-    let mut pts = atlas().points();
+    let mut pts = triangle(5.2, 3.3, 4.4).points();
     pts.swap(0, 1);
     let w = check(&Landmarks::from_points(pts)).unwrap();
     assert_eq!(
@@ -175,13 +176,13 @@ fn a_swap_only_the_distances_suggest_is_a_warning() {
     );
     let text = w[0].to_string();
     assert!(
-        text.contains("5.15 / 3.69 / 4.74 mm instead of 5.15 / 4.74 / 3.69 mm")
+        text.contains("5.20 / 3.30 / 4.40 mm instead of 5.20 / 4.40 / 3.30 mm")
             && text.contains("no image was checked"),
         "{text}"
     );
 }
 
-/// IMJ and ISJ exchanged on the atlas: umbo-IMJ 3.69 mm is shorter than any manubrium, so
+/// IMJ and ISJ exchanged on the atlas: umbo-IMJ 2.77 mm is shorter than any manubrium, so
 /// the landmarks are refused, and the message names the swap.
 #[test]
 fn an_impossible_distance_names_the_swap_that_would_fix_it() {
