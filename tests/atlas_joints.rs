@@ -5,7 +5,6 @@
 use std::collections::BTreeMap;
 
 use nalgebra::Point3;
-use otoatlas::atlas::joint_layer::JOINT_BONES;
 use otoatlas::atlas::{Atlas, Bone, Region, default_atlas};
 
 fn atlas() -> Atlas {
@@ -55,7 +54,10 @@ fn each_joint_meets_exactly_its_two_bones() {
     let atlas = atlas();
     let mesh = &atlas.mesh.tets;
     let faces = mesh.interior_faces();
-    for (joint, bones) in JOINT_BONES {
+    for joint in Region::JOINTS {
+        let Some(bones) = joint.joined_bones() else {
+            panic!("{} joins no bones", joint.name());
+        };
         let mut area: BTreeMap<&str, f64> = BTreeMap::new();
         for (f, a, b) in &faces {
             let (ra, rb) = (mesh.regions[*a], mesh.regions[*b]);

@@ -96,7 +96,6 @@ pub struct Anatomy {
 }
 
 const BONES: [Bone; 3] = [Bone::Malleus, Bone::Incus, Bone::Stapes];
-const JOINTS: [Region; 2] = [Region::IncudomalleolarJoint, Region::IncudostapedialJoint];
 const BANDS: [Region; 6] = [
     Region::SuperiorMallealLigament,
     Region::AnteriorMallealLigament,
@@ -109,9 +108,6 @@ const BANDS: [Region; 6] = [
 /// How far a joint's layer may lie from its disc's plane, along the normal (mm): the
 /// articular facets are curved (the incudomalleolar joint is a saddle).
 pub const JOINT_HALF_DEPTH_MM: f64 = 0.6;
-
-/// The two bones each joint connects (indices into the bones), in `JOINTS` order.
-const JOINT_BONES: [[usize; 2]; 2] = [[0, 1], [1, 2]];
 
 /// Margin added around the primitives' bounds (mm).
 const BOUNDS_MARGIN: f64 = 0.5;
@@ -322,8 +318,10 @@ impl Anatomy {
             ..disc.clone()
         }
         .distance(p);
-        let [a, b] = JOINT_BONES[k];
-        let (da, db) = (self.bones[a].distance(p), self.bones[b].distance(p));
+        let Some([a, b]) = Region::JOINTS[k].joined_bones() else {
+            return f64::INFINITY;
+        };
+        let (da, db) = (self.bone_distance(a, p), self.bone_distance(b, p));
         let half = 0.5 * disc.thickness;
         let layer = 0.5 * (da - db).abs() - half;
         let near = da.min(db) - half;
@@ -345,7 +343,7 @@ impl LabelledDomain for Anatomy {
     }
 
     fn label(&self, p: &Point3<f64>) -> u16 {
-        for (k, r) in JOINTS.iter().enumerate() {
+        for (k, r) in Region::JOINTS.iter().enumerate() {
             if self.joint_distance(k, p) < 0.0 {
                 return r.label();
             }
@@ -372,7 +370,7 @@ impl LabelledDomain for Anatomy {
         let Some(region) = Region::from_label(region) else {
             return f64::INFINITY;
         };
-        if let Some(k) = JOINTS.iter().position(|r| *r == region) {
+        if let Some(k) = Region::JOINTS.iter().position(|r| *r == region) {
             return (0..k).fold(self.joint_distance(k, p), |d, j| {
                 d.max(-self.joint_distance(j, p))
             });

@@ -36,18 +36,13 @@ impl JointLayer {
     }
 }
 
-/// The bones each joint connects.
-pub const JOINT_BONES: [(Region, [Bone; 2]); 2] = [
-    (Region::IncudomalleolarJoint, [Bone::Malleus, Bone::Incus]),
-    (Region::IncudostapedialJoint, [Bone::Incus, Bone::Stapes]),
-];
-
 /// Measures both joints' layers in `mesh`; an error names a joint that misses a bone.
 pub fn joint_layers(mesh: &TetMesh, anatomy: &Anatomy) -> Result<Vec<JointLayer>, String> {
     let faces = mesh.interior_faces();
     let spec = &anatomy.spec().joints;
-    JOINT_BONES
+    Region::JOINTS
         .iter()
+        .filter_map(|joint| joint.joined_bones().map(|bones| (joint, bones)))
         .map(|(joint, bones)| {
             let label = joint.label();
             let area_with = |bone: Bone| -> f64 {

@@ -94,6 +94,18 @@ impl Region {
             _ => None,
         }
     }
+
+    /// The two joints, in label order.
+    pub const JOINTS: [Region; 2] = [Region::IncudomalleolarJoint, Region::IncudostapedialJoint];
+
+    /// The two ossicles a joint connects (None for every other region).
+    pub fn joined_bones(self) -> Option<[Bone; 2]> {
+        match self {
+            Region::IncudomalleolarJoint => Some([Bone::Malleus, Bone::Incus]),
+            Region::IncudostapedialJoint => Some([Bone::Incus, Bone::Stapes]),
+            _ => None,
+        }
+    }
 }
 
 impl Bone {
