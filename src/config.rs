@@ -39,6 +39,7 @@ pub struct Config {
     pub rigid: RigidConfig,
     pub articulate: crate::register::articulate::ArticulateConfig,
     pub deform: crate::register::deform::DeformConfig,
+    pub refine: crate::register::refine::RefineConfig,
     pub validate: ValidateConfig,
 }
 
@@ -172,6 +173,8 @@ impl Config {
                 self.articulate.search_range_mm,
             ),
             ("articulate.tolerance_mm", self.articulate.tolerance_mm),
+            ("refine.smoothness", self.refine.smoothness),
+            ("refine.search_range_mm", self.refine.search_range_mm),
         ] {
             positive(field, v)?;
         }

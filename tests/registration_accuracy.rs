@@ -81,10 +81,9 @@ fn score(case: &Path, out: &Path) -> Scored {
 }
 
 /// The acceptance bounds of the registration issue, per ossicle (MASD, HD95, and the
-/// deformable stage's improvement over rigid alone, ≥ 25 %: 40 % until the atlas's joints
-/// were made anatomical, whose closer landmark fit leaves less to improve — case-002's
-/// malleus 0.066 -> 0.046 mm, 30 %), and the improvement on the chain (mean MASD of the
-/// three ossicles).
+/// deformable stage's improvement over rigid alone, ≥ 40 %; 55-90 % measured since the
+/// surface level), and the improvement on the chain (mean MASD of the three ossicles, ≥ 50 %;
+/// 63 % at least measured).
 fn check(s: &Scored) {
     for (name, rigid, fin, hd95) in &s.structures {
         eprintln!(
@@ -104,7 +103,7 @@ fn check(s: &Scored) {
                 s.case
             );
             assert!(
-                *fin <= 0.75 * rigid,
+                *fin <= 0.6 * rigid,
                 "{} {name}: the deformable stage improved MASD by {:.0} % ({rigid} -> {fin})",
                 s.case,
                 100.0 * (1.0 - fin / rigid)
@@ -123,7 +122,7 @@ fn check(s: &Scored) {
     };
     let improvement = 1.0 - chain(|x| x.2) / chain(|x| x.1);
     assert!(
-        improvement >= 0.4,
+        improvement >= 0.5,
         "{}: the deformable stage improved the chain's MASD by {:.0} %",
         s.case,
         100.0 * improvement

@@ -31,10 +31,10 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
 
 /// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm], and
 /// the least improvement of the chain MASD over the landmark fit.
-const MASD_MAX_VOXELS: f64 = 2.2;
-const MASD_MAX_MM: f64 = 0.4;
-const HD95_MAX_MM: f64 = 1.6;
-const MIN_IMPROVEMENT: f64 = 0.25;
+const MASD_MAX_VOXELS: f64 = 1.3;
+const MASD_MAX_MM: f64 = 0.3;
+const HD95_MAX_MM: f64 = 1.7;
+const MIN_IMPROVEMENT: f64 = 0.4;
 
 fn run_ok(args: &[&str]) {
     let out = otoatlas(args);

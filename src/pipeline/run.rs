@@ -293,6 +293,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             step,
             &config.articulate,
             &config.deform,
+            &config.refine,
         )
         .map_err(|e| Error::Usage(e.to_string()))?;
         let (result, eardrum) = (registered.deform, registered.eardrum);
@@ -307,8 +308,10 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             "status": result.status,
             "iterations": result.history.len(),
             "history": result.history,
+            "refinement": registered.refinement,
             "eardrum": eardrum,
             "probe_step_mm": step,
+            "seconds": registered.seconds,
         });
         let mut mesh = atlas.mesh.clone();
         mesh.tets.nodes = result.positions.clone();

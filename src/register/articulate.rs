@@ -320,8 +320,8 @@ pub fn articulated_shape(
         })
         .collect();
     let options = StaticOptions {
-        tolerance_mm: 1e-4,
-        max_iterations: 30,
+        tolerance_mm: 1e-3,
+        max_iterations: 8,
         max_halvings: 12,
         tangent_shift: 1e-6 * modulus_pa,
     };

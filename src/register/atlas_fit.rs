@@ -6,14 +6,17 @@
 //! cannot tell a left ear from a right one, so the side is decided before anything else.
 
 use std::collections::HashSet;
+use std::time::Instant;
 
 use nalgebra::Point3;
+use serde::Serialize;
 
 use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
 use super::deform::{
     DeformConfig, DeformError, DeformResult, DeformStatus, ProbeKind, ProbeTriangle, deform,
 };
 use super::eardrum::{EardrumFit, fit_eardrum};
+use super::refine::{RefineConfig, Refinement, refine};
 use super::rigid::{RigidFit, fit_similarity};
 use crate::atlas::{Atlas, Part};
 use crate::ear::Landmarks;
@@ -102,13 +105,25 @@ fn smallest_volume_ratio(atlas: &Atlas, placed: &[Point3<f64>], x: &[Point3<f64>
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Wall-clock seconds of each level of the deformable stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct LevelSeconds {
+    pub articulate: f64,
+    pub fem: f64,
+    pub refine: f64,
+    pub eardrum: f64,
+}
+
 /// What the deformable stage made: the registered nodes with the record of each step.
 #[derive(Debug, Clone)]
 pub struct Registered {
     /// Each ossicle's own pose (absent when `[articulate]` is off).
     pub articulation: Option<Articulation>,
     pub deform: DeformResult,
+    /// The surface level after the FEM levels (absent when `[refine]` is off).
+    pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
+    pub seconds: LevelSeconds,
 }
 
 /// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and
@@ -121,8 +136,11 @@ pub fn deform_atlas(
     step: f64,
     articulate_cfg: &ArticulateConfig,
     cfg: &DeformConfig,
+    refine_cfg: &RefineConfig,
 ) -> Result<Registered, DeformError> {
     let moduli = Some((cfg.regularisation_modulus_pa, cfg.min_modulus_ratio));
+    let mut seconds = LevelSeconds::default();
+    let clock = Instant::now();
     let (rest, articulation) = if articulate_cfg.enabled {
         let (targets, mut record) = articulate(atlas, placed, sampler, step, cfg, articulate_cfg);
         let placed_model = atlas.fem_model(placed, moduli, false)?;
@@ -139,6 +157,8 @@ pub fn deform_atlas(
     // the FEM regularises each level's change from its rest shape; after a level settles, its
     // result becomes the next level's rest shape (coarse to fine: the shape found so far is no
     // longer held back, only the further change is)
+    seconds.articulate = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
     let probes = probe_triangles(atlas);
     let mut rest = rest;
     let mut result: Option<DeformResult> = None;
@@ -174,10 +194,28 @@ pub fn deform_atlas(
     let Some(mut result) = result else {
         return Err(DeformError::NothingFound);
     };
+    seconds.fem = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
+    let refinement = refine_cfg.enabled.then(|| {
+        refine(
+            &atlas.mesh.tets,
+            &probes,
+            &mut result.positions,
+            sampler,
+            step,
+            cfg,
+            refine_cfg,
+        )
+    });
+    seconds.refine = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
     let eardrum = fit_eardrum(atlas, placed, &mut result.positions, sampler, step, cfg);
+    seconds.eardrum = clock.elapsed().as_secs_f64();
     Ok(Registered {
         articulation,
         deform: result,
+        refinement,
         eardrum,
+        seconds,
     })
 }

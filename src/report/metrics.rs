@@ -13,6 +13,7 @@ use super::error::ReportError;
 use crate::atlas::Part;
 use crate::meshdev::SurfaceDistances;
 use crate::register::landmarks::LandmarkWarning;
+use crate::register::refine::Refinement;
 
 /// Target MASD per ossicle [mm] (mechanics-metrics.md §0.2).
 pub const MASD_TARGET_MM: f64 = 0.2;
@@ -99,6 +100,8 @@ struct Status {
 struct DeformDocument {
     status: Status,
     history: Vec<Iteration>,
+    #[serde(default)]
+    refinement: Option<Refinement>,
 }
 
 /// The deformable stage as its artefact (and `metrics.json`'s `deform`) records it.
@@ -112,6 +115,9 @@ pub struct DeformSummary {
     pub reason: Option<String>,
     pub mean_offset_mm: Option<f64>,
     pub history: Vec<Iteration>,
+    /// The surface level after the FEM levels (absent when it was off, or in records made
+    /// before it existed).
+    pub refinement: Option<Refinement>,
 }
 
 /// Reads the deformable stage's record.
@@ -128,6 +134,7 @@ pub fn parse_deform(deform: &Value, case: &str) -> Result<DeformSummary, ReportE
         reason: doc.status.reason,
         mean_offset_mm: doc.status.mean_offset_mm,
         history: doc.history,
+        refinement: doc.refinement,
     })
 }
 

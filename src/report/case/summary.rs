@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use super::{CaseReportInput, mm};
 use crate::atlas::Part;
 use crate::ear::LandmarkName;
+use crate::register::refine::{RefineStop, Refinement};
 use crate::report::html::Page;
 use crate::report::metrics::{DeformSummary, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics};
 
@@ -18,34 +19,10 @@ pub(super) fn verdict(
     scores: Option<&BTreeMap<String, StructureMetrics>>,
 ) {
     page.heading("Verdict");
-    match deform.status.as_str() {
-        "converged" => {
-            let why = match (deform.reason.as_deref(), deform.mean_offset_mm) {
-                (Some("plateau"), Some(o)) => format!(
-                    " (stop: the mean distance to the bone borders stopped falling, at {o:.3} mm)"
-                ),
-                (Some("balance"), Some(o)) => format!(
-                    " (stop: the FEM and the springs balance, {o:.3} mm on average from the bone borders)"
-                ),
-                _ => String::new(),
-            };
-            page.paragraph(
-                &format!("The deformable registration converged{why}."),
-                Some("ok"),
-            )
-        }
-        other => page.paragraph(
-            &format!(
-                "The deformable registration did not converge ({other}{}): check the overlays.",
-                deform
-                    .message
-                    .as_deref()
-                    .map(|m| format!(": {m}"))
-                    .unwrap_or_default()
-            ),
-            Some("bad"),
-        ),
-    };
+    match &deform.refinement {
+        Some(refinement) => refined_verdict(page, deform, refinement),
+        None => fem_verdict(page, deform),
+    }
     let Some(scores) = scores else {
         page.paragraph(
             "No manual segmentation: accuracy cannot be measured; judge the overlays.",
@@ -75,6 +52,89 @@ pub(super) fn verdict(
         page.paragraph(
             &format!("Missing the targets ({targets}): {}.", missed.join(", ")),
             Some("bad"),
+        );
+    }
+}
+
+/// The verdict on the FEM levels when they end the stage (the surface level off).
+fn fem_verdict(page: &mut Page, deform: &DeformSummary) {
+    match deform.status.as_str() {
+        "converged" => {
+            let why = match (deform.reason.as_deref(), deform.mean_offset_mm) {
+                (Some("plateau"), Some(o)) => format!(
+                    " (stop: the mean distance to the bone borders stopped falling, at {o:.3} mm)"
+                ),
+                (Some("balance"), Some(o)) => format!(
+                    " (stop: the FEM and the springs balance, {o:.3} mm on average from the bone borders)"
+                ),
+                _ => String::new(),
+            };
+            page.paragraph(
+                &format!("The deformable registration converged{why}."),
+                Some("ok"),
+            )
+        }
+        other => page.paragraph(
+            &format!(
+                "The deformable registration did not converge ({other}{}): check the overlays.",
+                deform
+                    .message
+                    .as_deref()
+                    .map(|m| format!(": {m}"))
+                    .unwrap_or_default()
+            ),
+            Some("bad"),
+        ),
+    };
+}
+
+/// The verdict when the surface level ends the stage: its stop decides; the FEM levels before
+/// it are coarse by design (their iteration limit is no failure), but an element their guard
+/// stopped at is worth a look.
+fn refined_verdict(page: &mut Page, deform: &DeformSummary, r: &Refinement) {
+    let (first, last) = (r.mean_offset_first_mm, r.mean_offset_last_mm);
+    let levels = format!(
+        "the FEM levels ({} iterations) then the surface level ({} rounds, mean distance to the bone borders {first:.3} → {last:.3} mm)",
+        deform.history.len(),
+        r.rounds
+    );
+    match r.stop {
+        RefineStop::Plateau => page.paragraph(
+            &format!(
+                "The deformable registration converged: {levels}; stop: the distance stopped falling."
+            ),
+            Some("ok"),
+        ),
+        RefineStop::Rounds => page.paragraph(
+            &format!(
+                "The deformable registration reached the surface level's round limit: {levels}; the distance was still falling."
+            ),
+            Some("note"),
+        ),
+        RefineStop::ElementGuard => page.paragraph(
+            &format!(
+                "The deformable registration stopped where a further move would flatten an element: {levels}. Check the overlays."
+            ),
+            Some("note"),
+        ),
+        RefineStop::NothingFound => page.paragraph(
+            &format!(
+                "The surface level found no bone border around the registered atlas: {levels}. Check the overlays."
+            ),
+            Some("bad"),
+        ),
+    };
+    if deform.status == "inversion_guard" {
+        page.paragraph(
+            &format!(
+                "The FEM levels stopped at their last valid state{}.",
+                deform
+                    .message
+                    .as_deref()
+                    .map(|m| format!(": {m}"))
+                    .unwrap_or_default()
+            ),
+            Some("note"),
         );
     }
 }
@@ -145,7 +205,17 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
         ("rigid scale", format!("{:.4}", input.fit.transform.scale)),
         (
             "deformable stage",
-            format!("{}, {} iterations", deform.status, deform.history.len()),
+            match &deform.refinement {
+                Some(r) => format!(
+                    "FEM levels {}, {} iterations; surface level {} rounds, stop {}, {:.3} mm from the bone borders",
+                    deform.status,
+                    deform.history.len(),
+                    r.rounds,
+                    r.stop.name(),
+                    r.mean_offset_last_mm
+                ),
+                None => format!("{}, {} iterations", deform.status, deform.history.len()),
+            },
         ),
     ];
     page.heading("Case summary").table(

@@ -287,6 +287,34 @@ fn a_run_resumed_past_score_shows_the_stored_scores_and_says_what_is_missing() {
 }
 
 #[test]
+fn the_surface_level_decides_the_verdict_after_coarse_fem_levels() {
+    let mut f = fixture();
+    f.deform["status"] = json!({"status": "max_iterations"});
+    f.deform["refinement"] = json!({"rounds": 7, "mean_offset_first_mm": 0.138,
+        "mean_offset_last_mm": 0.054, "found_fraction": 0.74, "max_move_mm": 0.6,
+        "stiffened_nodes": 300, "stop": "plateau"});
+    let page = html(&f, Accuracy::NoSegmentation);
+    assert!(page.contains(
+        "<p class=\"ok\">The deformable registration converged: the FEM levels (3 iterations) \
+         then the surface level (7 rounds, mean distance to the bone borders 0.138 → 0.054 mm); \
+         stop: the distance stopped falling.</p>"
+    ));
+    assert!(page.contains(
+        "<td>FEM levels max_iterations, 3 iterations; surface level 7 rounds, stop plateau, \
+         0.054 mm from the bone borders</td>"
+    ));
+    assert!(!page.contains("did not converge"));
+    // a surface level that found nothing is a failure, whatever the FEM levels did
+    f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
+    f.deform["refinement"]["stop"] = json!("nothing_found");
+    let page = html(&f, Accuracy::NoSegmentation);
+    assert!(page.contains("<p class=\"bad\">The surface level found no bone border"));
+    assert!(page.contains(
+        "<p class=\"note\">The FEM levels stopped at their last valid state: element 7 inverted.</p>"
+    ));
+}
+
+#[test]
 fn a_deformable_stage_that_stopped_early_is_flagged() {
     let mut f = fixture();
     f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});

@@ -1,0 +1,329 @@
+//! The last, finest level of the registration: the ossicles' surfaces onto the image's bone
+//! edges, the rest of the mesh following.
+//!
+//! Why a level of its own: the FEM levels regularise by elastic energy, which is what keeps
+//! the chain a chain, but it also holds shape detail back — on real people's chains the
+//! springs and the FEM balance 0.1-0.2 mm from the edges the probes see, while the edges
+//! themselves are within about 0.05 mm of the true surface. Here the regulariser is
+//! only smoothness of the displacement:
+//!
+//! - every ossicle surface triangle probes the image along its normal for its bone edge (the
+//!   deformable stage's probe and screening), and each surface node gets the area-weighted
+//!   mean displacement its triangles found (the deformable stage's targets);
+//! - the displacement u of all mesh nodes minimises
+//!   Σ_found a_v |u_v − d_v|² + smoothness · Σ_edges |u_a − u_b|²
+//!   (a_v the node's probed area over the mean, edges those of the tetrahedra), one sparse
+//!   Cholesky per round: found nodes move to their edges, nodes without a find (the faces on
+//!   the joints, ligaments and tendons) and the interior follow harmonically;
+//! - where a round's move would invert or flatten an element (its shape quality below
+//!   [`MIN_QUALITY`]; an element already below may lose at most a tenth of it), the element's
+//!   nodes give up their own offsets and their edges stiffen, and the round is solved again,
+//!   up to [`MAX_STIFFENINGS`] times; after that the level stops at its last admissible shape.
+//!
+//! The level stops when the mean border offset no longer falls (by [`PLATEAU`]) or after
+//! `rounds` rounds.
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::deform::{
+    Border, DeformConfig, ProbeConfig, ProbeTriangle, probe_surface, screen, triangle_neighbours,
+};
+use crate::image::Sampler;
+use crate::mesh::tet::{TetMesh, signed_volume};
+
+/// No move may leave an element's shape quality (its volume over the regular tetrahedron's
+/// of its RMS edge; 1 regular, 0 flat) below this...
+const MIN_QUALITY: f64 = 0.05;
+/// ... or, for an element already below it, below this fraction of its quality before.
+const SLIVER_KEEP: f64 = 0.9;
+/// Times a round is solved again with the nodes of the elements it would flatten stiffened,
+/// before the level stops...
+const MAX_STIFFENINGS: usize = 6;
+/// ... each time multiplying the smoothness of their edges by this.
+const STIFFEN: f64 = 10.0;
+/// The mean border offset must fall by this fraction per round to go on.
+const PLATEAU: f64 = 0.03;
+/// Tikhonov term keeping the system definite on a part with no find [unitless].
+const DEFINITE: f64 = 1e-9;
+
+/// Knobs of the surface level (`[refine]` in pipeline.toml).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefineConfig {
+    /// Run the surface level after the FEM levels [true/false].
+    pub enabled: bool,
+    /// Probe-and-move rounds at most [count].
+    pub rounds: usize,
+    /// Weight of the displacement's smoothness over each tetrahedron edge against a node's
+    /// probed offset (a node of mean probed area weighs 1) [unitless].
+    pub smoothness: f64,
+    /// How far each triangle looks for its bone edge on either side [mm]: the FEM levels
+    /// leave the surface within a few tenths of a millimetre of its edges.
+    pub search_range_mm: f64,
+}
+
+/// What the surface level did (`refinement` in the deformable stage's record).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Refinement {
+    /// Rounds whose move was kept.
+    pub rounds: usize,
+    /// Mean |offset| of the kept border points before the first round and in the last [mm].
+    pub mean_offset_first_mm: f64,
+    pub mean_offset_last_mm: f64,
+    /// Fraction of the probed triangles with a kept border point in the last round.
+    pub found_fraction: f64,
+    /// Largest nodal move of the whole level [mm].
+    pub max_move_mm: f64,
+    /// Nodes stiffened in the last round to keep its elements from flattening.
+    pub stiffened_nodes: usize,
+    /// Why it stopped.
+    pub stop: RefineStop,
+}
+
+/// Why the surface level stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefineStop {
+    /// The mean border offset stopped falling.
+    Plateau,
+    /// The round limit.
+    Rounds,
+    /// A round's move would flatten an element however stiff its surroundings.
+    ElementGuard,
+    /// The probes found no edge.
+    NothingFound,
+}
+
+impl RefineStop {
+    /// The name used in the record (`plateau`, `rounds`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            RefineStop::Plateau => "plateau",
+            RefineStop::Rounds => "rounds",
+            RefineStop::ElementGuard => "element_guard",
+            RefineStop::NothingFound => "nothing_found",
+        }
+    }
+}
+
+/// Moves `x` (all atlas nodes; those of no tetrahedron are left alone) onto the bone edges
+/// probed from `probes` (with the deformable stage's probe and screening, `deform`).
+pub fn refine(
+    mesh: &TetMesh,
+    probes: &[ProbeTriangle],
+    x: &mut [Point3<f64>],
+    sampler: &Sampler,
+    step: f64,
+    deform: &DeformConfig,
+    cfg: &RefineConfig,
+) -> Refinement {
+    let n = x.len();
+    let probe_cfg = ProbeConfig {
+        search_range_mm: cfg.search_range_mm,
+        ..deform.probe.clone()
+    };
+    let neighbours = triangle_neighbours(probes, n);
+    let edges = tet_edges(mesh, n);
+    let start: Vec<Point3<f64>> = x.to_vec();
+    let mut record = Refinement {
+        rounds: 0,
+        mean_offset_first_mm: f64::NAN,
+        mean_offset_last_mm: f64::NAN,
+        found_fraction: 0.0,
+        max_move_mm: 0.0,
+        stiffened_nodes: 0,
+        stop: RefineStop::Rounds,
+    };
+    let mut best = f64::INFINITY;
+    for round in 0..=cfg.rounds {
+        let borders: Vec<Option<(Border, f64)>> =
+            probe_surface(probes, x, sampler, step, &probe_cfg)
+                .into_iter()
+                .map(|f| f.map(|p| (p.border, p.area)))
+                .collect();
+        let kept = screen(&borders, &neighbours, deform.neighbour_tolerance_mm);
+        let used = kept.iter().filter(|k| **k).count();
+        if used == 0 {
+            record.stop = RefineStop::NothingFound;
+            break;
+        }
+        let mean_offset = borders
+            .iter()
+            .zip(&kept)
+            .filter_map(|(b, k)| b.filter(|_| *k).map(|(bd, _)| bd.offset_mm.abs()))
+            .sum::<f64>()
+            / used as f64;
+        if round == 0 {
+            record.mean_offset_first_mm = mean_offset;
+        }
+        record.mean_offset_last_mm = mean_offset;
+        record.found_fraction = used as f64 / probes.len().max(1) as f64;
+        if round == cfg.rounds {
+            break;
+        }
+        if mean_offset > (1.0 - PLATEAU) * best {
+            record.stop = RefineStop::Plateau;
+            break;
+        }
+        best = mean_offset;
+        let (data, mut weight) = node_targets(probes, &borders, &kept, x);
+        // where the move would flatten an element, its nodes give up their own offsets and
+        // their edges stiffen, and the round is solved again
+        let mut stiffness = vec![1.0f64; n];
+        let mut admissible = None;
+        for _ in 0..=MAX_STIFFENINGS {
+            let Some(u) = smooth_displacement(&edges, &data, &weight, &stiffness, cfg.smoothness)
+            else {
+                break;
+            };
+            let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
+            let failing = failing_elements(mesh, x, &trial);
+            if failing.is_empty() {
+                admissible = Some(trial);
+                break;
+            }
+            for t in failing {
+                for k in mesh.tets[t] {
+                    weight[k as usize] = 0.0;
+                    stiffness[k as usize] *= STIFFEN;
+                }
+            }
+        }
+        record.stiffened_nodes = stiffness.iter().filter(|s| **s > 1.0).count();
+        let Some(trial) = admissible else {
+            record.stop = RefineStop::ElementGuard;
+            break;
+        };
+        x.copy_from_slice(&trial);
+        record.rounds += 1;
+    }
+    record.max_move_mm = x
+        .iter()
+        .zip(&start)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max);
+    record
+}
+
+/// The unique edges of the tetrahedra.
+fn tet_edges(mesh: &TetMesh, n: usize) -> Vec<(u32, u32)> {
+    let mut edges: Vec<(u32, u32)> = mesh
+        .tets
+        .iter()
+        .flat_map(|t| {
+            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+                .map(|(i, j)| (t[i].min(t[j]), t[i].max(t[j])))
+        })
+        .filter(|&(a, b)| (b as usize) < n && a != b)
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
+/// Per node, the area-weighted mean displacement its kept triangles found, and its probed
+/// area relative to the mean over the found nodes (0 where nothing was found).
+fn node_targets(
+    probes: &[ProbeTriangle],
+    borders: &[Option<(Border, f64)>],
+    kept: &[bool],
+    x: &[Point3<f64>],
+) -> (Vec<Vector3<f64>>, Vec<f64>) {
+    let n = x.len();
+    let mut sum = vec![Vector3::zeros(); n];
+    let mut area = vec![0.0f64; n];
+    for ((tri, b), k) in probes.iter().zip(borders).zip(kept) {
+        let (Some((bd, a)), true) = (b, *k) else {
+            continue;
+        };
+        let [p, q, r] = tri.nodes.map(|i| x[i as usize]);
+        let centre = (p.coords + q.coords + r.coords) / 3.0;
+        let displacement = bd.point.coords - centre;
+        for node in tri.nodes {
+            sum[node as usize] += displacement * *a;
+            area[node as usize] += *a;
+        }
+    }
+    let found = area.iter().filter(|a| **a > 0.0).count().max(1);
+    let mean = area.iter().sum::<f64>() / found as f64;
+    let data = sum
+        .iter()
+        .zip(&area)
+        .map(|(s, a)| if *a > 0.0 { s / *a } else { Vector3::zeros() })
+        .collect();
+    let weight = area
+        .iter()
+        .map(|a| a / mean.max(f64::MIN_POSITIVE))
+        .collect();
+    (data, weight)
+}
+
+/// The displacement minimising Σ w_v |u_v − d_v|² + smoothness Σ_edges s_ab |u_a − u_b|²
+/// (s_ab the larger `stiffness` of the edge's nodes; the same scalar system for each
+/// coordinate); nodes on no edge keep u = 0. `None` if the factorisation fails.
+fn smooth_displacement(
+    edges: &[(u32, u32)],
+    data: &[Vector3<f64>],
+    weight: &[f64],
+    stiffness: &[f64],
+    smoothness: f64,
+) -> Option<Vec<Vector3<f64>>> {
+    let n = data.len();
+    let mut diagonal: Vec<f64> = weight.iter().map(|w| w + DEFINITE).collect();
+    let mut triplets = Vec::with_capacity(n + edges.len());
+    for &(a, b) in edges {
+        let w = smoothness * stiffness[a as usize].max(stiffness[b as usize]);
+        diagonal[a as usize] += w;
+        diagonal[b as usize] += w;
+        // the lower triangle only (b > a)
+        triplets.push(Triplet::new(b as usize, a as usize, -w));
+    }
+    triplets.extend(
+        diagonal
+            .iter()
+            .enumerate()
+            .map(|(v, d)| Triplet::new(v, v, *d)),
+    );
+    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
+    let llt = matrix.sp_cholesky(Side::Lower).ok()?;
+    let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
+    llt.solve_in_place(rhs.as_mut());
+    Some(
+        (0..n)
+            .map(|v| Vector3::new(rhs[(v, 0)], rhs[(v, 1)], rhs[(v, 2)]))
+            .collect(),
+    )
+}
+
+/// The tetrahedra whose shape quality at `after` falls below [`MIN_QUALITY`], or, if it was
+/// below it at `before` already (a sliver of the atlas, an element the FEM levels flattened),
+/// below [`SLIVER_KEEP`] of its quality at `before`.
+fn failing_elements(mesh: &TetMesh, before: &[Point3<f64>], after: &[Point3<f64>]) -> Vec<usize> {
+    (0..mesh.tets.len())
+        .filter(|&t| {
+            let tet = &mesh.tets[t];
+            quality(after, tet) < MIN_QUALITY.min(SLIVER_KEEP * quality(before, tet))
+        })
+        .collect()
+}
+
+/// The tetrahedron's volume over that of the regular one with its RMS edge length (1 for a
+/// regular tetrahedron, 0 when flat, negative when inverted).
+fn quality(p: &[Point3<f64>], t: &[u32; 4]) -> f64 {
+    let [a, b, c, d] = t.map(|k| p[k as usize]);
+    let squares = [(a, b), (a, c), (a, d), (b, c), (b, d), (c, d)]
+        .iter()
+        .map(|(u, v)| (u - v).norm_squared())
+        .sum::<f64>()
+        / 6.0;
+    let regular = squares.powf(1.5) / (6.0 * std::f64::consts::SQRT_2);
+    if regular > 0.0 {
+        signed_volume(&a, &b, &c, &d) / regular
+    } else {
+        0.0
+    }
+}
