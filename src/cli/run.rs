@@ -70,13 +70,22 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}), deform {} after {} iterations",
+        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}), FEM levels {} after {} iterations{}",
         case.id,
         m["side"].as_str().unwrap_or("?"),
         m["rigid"]["rms_mm"].as_f64().unwrap_or(f64::NAN),
         m["rigid"]["scale"].as_f64().unwrap_or(f64::NAN),
         m["deform"]["status"]["status"].as_str().unwrap_or("?"),
-        m["deform"]["iterations"]
+        m["deform"]["iterations"],
+        match m["deform"]["refinement"].as_object() {
+            Some(r) => format!(
+                ", surface level {} after {} rounds, {:.3} mm from the bone borders",
+                r["stop"].as_str().unwrap_or("?"),
+                r["rounds"],
+                r["mean_offset_last_mm"].as_f64().unwrap_or(f64::NAN)
+            ),
+            None => String::new(),
+        }
     );
     if let Some(scores) = m["scores"].as_object() {
         let _ = writeln!(

@@ -70,9 +70,18 @@ pub struct Registration {
     pub landmark_residuals_mm: Vec<f64>,
     /// The isotropic scale of `atlas_to_patient`.
     pub scale: f64,
-    /// Deformable stage: "converged", "max_iterations" or "inversion_guard".
+    /// The FEM levels of the deformable stage: "converged", "max_iterations" (expected when
+    /// the surface level follows) or "inversion_guard".
     pub deform_status: String,
     pub deform_iterations: u64,
+    /// Why the surface level stopped ("plateau", "rounds", "element_guard", "nothing_found",
+    /// "factorisation");
+    /// absent when it was off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_stop: Option<String>,
+    /// Its rounds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_rounds: Option<u64>,
 }
 
 /// Sizes of the registered mesh (equal in mesh.msh, mesh.vtu and the scene).

@@ -95,6 +95,8 @@ fn registration(fit: &RigidFit, deform: &Value) -> Registration {
             .unwrap_or("unknown")
             .to_string(),
         deform_iterations: deform["iterations"].as_u64().unwrap_or(0),
+        refine_stop: deform["refinement"]["stop"].as_str().map(str::to_string),
+        refine_rounds: deform["refinement"]["rounds"].as_u64(),
     }
 }
 

@@ -12,8 +12,8 @@
 //!   mean displacement its triangles found (the deformable stage's targets);
 //! - the displacement u of all mesh nodes minimises
 //!   Σ_found a_v |u_v − d_v|² + smoothness · Σ_edges |u_a − u_b|²
-//!   (a_v the node's probed area over the mean, edges those of the tetrahedra), one sparse
-//!   Cholesky per round: found nodes move to their edges, nodes without a find (the faces on
+//!   (a_v the node's probed area over the mean, edges those of the tetrahedra), one numeric
+//!   sparse Cholesky per solve on a symbolic analysis made once: found nodes move to their edges, nodes without a find (the faces on
 //!   the joints, ligaments and tendons) and the interior follow harmonically;
 //! - where a round's move would invert or flatten an element (its shape quality below
 //!   [`MIN_QUALITY`]; an element already below may lose at most a tenth of it), the element's
@@ -24,6 +24,7 @@
 //! `rounds` rounds.
 
 use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 use nalgebra::{Point3, Vector3};
@@ -96,6 +97,8 @@ pub enum RefineStop {
     ElementGuard,
     /// The probes found no edge.
     NothingFound,
+    /// The smoothing system could not be factorised (out of memory).
+    Factorisation,
 }
 
 impl RefineStop {
@@ -106,6 +109,7 @@ impl RefineStop {
             RefineStop::Rounds => "rounds",
             RefineStop::ElementGuard => "element_guard",
             RefineStop::NothingFound => "nothing_found",
+            RefineStop::Factorisation => "factorisation",
         }
     }
 }
@@ -127,7 +131,6 @@ pub fn refine(
         ..deform.probe.clone()
     };
     let neighbours = triangle_neighbours(probes, n);
-    let edges = tet_edges(mesh, n);
     let start: Vec<Point3<f64>> = x.to_vec();
     let mut record = Refinement {
         rounds: 0,
@@ -137,6 +140,10 @@ pub fn refine(
         max_move_mm: 0.0,
         stiffened_nodes: 0,
         stop: RefineStop::Rounds,
+    };
+    let Some(system) = Smoothing::new(mesh, n) else {
+        record.stop = RefineStop::Factorisation;
+        return record;
     };
     let mut best = f64::INFINITY;
     for round in 0..=cfg.rounds {
@@ -176,8 +183,8 @@ pub fn refine(
         let mut stiffness = vec![1.0f64; n];
         let mut admissible = None;
         for _ in 0..=MAX_STIFFENINGS {
-            let Some(u) = smooth_displacement(&edges, &data, &weight, &stiffness, cfg.smoothness)
-            else {
+            let Some(u) = system.solve(&data, &weight, &stiffness, cfg.smoothness) else {
+                record.stop = RefineStop::Factorisation;
                 break;
             };
             let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
@@ -195,7 +202,9 @@ pub fn refine(
         }
         record.stiffened_nodes = stiffness.iter().filter(|s| **s > 1.0).count();
         let Some(trial) = admissible else {
-            record.stop = RefineStop::ElementGuard;
+            if record.stop != RefineStop::Factorisation {
+                record.stop = RefineStop::ElementGuard;
+            }
             break;
         };
         x.copy_from_slice(&trial);
@@ -262,41 +271,72 @@ fn node_targets(
     (data, weight)
 }
 
-/// The displacement minimising Σ w_v |u_v − d_v|² + smoothness Σ_edges s_ab |u_a − u_b|²
-/// (s_ab the larger `stiffness` of the edge's nodes; the same scalar system for each
-/// coordinate); nodes on no edge keep u = 0. `None` if the factorisation fails.
-fn smooth_displacement(
-    edges: &[(u32, u32)],
-    data: &[Vector3<f64>],
-    weight: &[f64],
-    stiffness: &[f64],
-    smoothness: f64,
-) -> Option<Vec<Vector3<f64>>> {
-    let n = data.len();
-    let mut diagonal: Vec<f64> = weight.iter().map(|w| w + DEFINITE).collect();
-    let mut triplets = Vec::with_capacity(n + edges.len());
-    for &(a, b) in edges {
-        let w = smoothness * stiffness[a as usize].max(stiffness[b as usize]);
-        diagonal[a as usize] += w;
-        diagonal[b as usize] += w;
-        // the lower triangle only (b > a)
-        triplets.push(Triplet::new(b as usize, a as usize, -w));
+/// The smoothing system of one mesh: its edges and the symbolic Cholesky factorisation of
+/// their pattern, computed once and reused by every solve of the level.
+struct Smoothing {
+    edges: Vec<(u32, u32)>,
+    symbolic: SymbolicLlt<usize>,
+}
+
+impl Smoothing {
+    /// `None` if the pattern cannot be analysed.
+    fn new(mesh: &TetMesh, n: usize) -> Option<Smoothing> {
+        let edges = tet_edges(mesh, n);
+        let matrix = Self::matrix(&edges, &vec![1.0; n], &vec![1.0; n], 1.0)?;
+        let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).ok()?;
+        Some(Smoothing { edges, symbolic })
     }
-    triplets.extend(
-        diagonal
-            .iter()
-            .enumerate()
-            .map(|(v, d)| Triplet::new(v, v, *d)),
-    );
-    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
-    let llt = matrix.sp_cholesky(Side::Lower).ok()?;
-    let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
-    llt.solve_in_place(rhs.as_mut());
-    Some(
-        (0..n)
-            .map(|v| Vector3::new(rhs[(v, 0)], rhs[(v, 1)], rhs[(v, 2)]))
-            .collect(),
-    )
+
+    /// The lower triangle of diag(w) + smoothness · L, L the graph Laplacian of the edges
+    /// weighted by the larger `stiffness` of each edge's nodes (the same pattern whatever the
+    /// values).
+    fn matrix(
+        edges: &[(u32, u32)],
+        weight: &[f64],
+        stiffness: &[f64],
+        smoothness: f64,
+    ) -> Option<SparseColMat<usize, f64>> {
+        let n = weight.len();
+        let mut diagonal: Vec<f64> = weight.iter().map(|w| w + DEFINITE).collect();
+        let mut triplets = Vec::with_capacity(n + edges.len());
+        for &(a, b) in edges {
+            let w = smoothness * stiffness[a as usize].max(stiffness[b as usize]);
+            diagonal[a as usize] += w;
+            diagonal[b as usize] += w;
+            // b > a: the lower triangle
+            triplets.push(Triplet::new(b as usize, a as usize, -w));
+        }
+        triplets.extend(
+            diagonal
+                .iter()
+                .enumerate()
+                .map(|(v, d)| Triplet::new(v, v, *d)),
+        );
+        SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()
+    }
+
+    /// The displacement minimising Σ w_v |u_v − d_v|² + smoothness Σ_edges s_ab |u_a − u_b|²
+    /// (s_ab the larger `stiffness` of the edge's nodes; the same scalar system for each
+    /// coordinate); nodes on no edge keep u = 0. `None` if the factorisation fails.
+    fn solve(
+        &self,
+        data: &[Vector3<f64>],
+        weight: &[f64],
+        stiffness: &[f64],
+        smoothness: f64,
+    ) -> Option<Vec<Vector3<f64>>> {
+        let n = data.len();
+        let matrix = Self::matrix(&self.edges, weight, stiffness, smoothness)?;
+        let llt =
+            Llt::try_new_with_symbolic(self.symbolic.clone(), matrix.as_ref(), Side::Lower).ok()?;
+        let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
+        llt.solve_in_place(rhs.as_mut());
+        Some(
+            (0..n)
+                .map(|v| Vector3::new(rhs[(v, 0)], rhs[(v, 1)], rhs[(v, 2)]))
+                .collect(),
+        )
+    }
 }
 
 /// The tetrahedra whose shape quality at `after` falls below [`MIN_QUALITY`], or, if it was

@@ -123,6 +123,12 @@ fn refined_verdict(page: &mut Page, deform: &DeformSummary, r: &Refinement) {
             ),
             Some("bad"),
         ),
+        RefineStop::Factorisation => page.paragraph(
+            &format!(
+                "The surface level could not solve its smoothing system (out of memory?): {levels}. Check the overlays."
+            ),
+            Some("bad"),
+        ),
     };
     if deform.status == "inversion_guard" {
         page.paragraph(
