@@ -79,10 +79,13 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
         m["deform"]["iterations"],
         match m["deform"]["refinement"].as_object() {
             Some(r) => format!(
-                ", surface level {} after {} rounds, {:.3} mm from the bone borders",
+                ", surface level {} after {} rounds{}",
                 r["stop"].as_str().unwrap_or("?"),
                 r["rounds"],
-                r["mean_offset_last_mm"].as_f64().unwrap_or(f64::NAN)
+                r["mean_offset_last_mm"]
+                    .as_f64()
+                    .map(|o| format!(", {o:.3} mm from the bone borders"))
+                    .unwrap_or_default()
             ),
             None => String::new(),
         }

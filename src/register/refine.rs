@@ -13,8 +13,9 @@
 //! - the displacement u of all mesh nodes minimises
 //!   Σ_found a_v |u_v − d_v|² + smoothness · Σ_edges |u_a − u_b|²
 //!   (a_v the node's probed area over the mean, edges those of the tetrahedra), one numeric
-//!   sparse Cholesky per solve on a symbolic analysis made once: found nodes move to their edges, nodes without a find (the faces on
-//!   the joints, ligaments and tendons) and the interior follow harmonically;
+//!   sparse Cholesky per solve on a symbolic analysis made once: found nodes move to their
+//!   edges, nodes without a find (the faces on the joints, ligaments and tendons) and the
+//!   interior follow harmonically;
 //! - where a round's move would invert or flatten an element (its shape quality below
 //!   [`MIN_QUALITY`]; an element already below may lose at most a tenth of it), the element's
 //!   nodes give up their own offsets and their edges stiffen, and the round is solved again,
@@ -72,9 +73,10 @@ pub struct RefineConfig {
 pub struct Refinement {
     /// Rounds whose move was kept.
     pub rounds: usize,
-    /// Mean |offset| of the kept border points before the first round and in the last [mm].
-    pub mean_offset_first_mm: f64,
-    pub mean_offset_last_mm: f64,
+    /// Mean |offset| of the kept border points before the first round and in the last [mm]
+    /// (absent when nothing was found).
+    pub mean_offset_first_mm: Option<f64>,
+    pub mean_offset_last_mm: Option<f64>,
     /// Fraction of the probed triangles with a kept border point in the last round.
     pub found_fraction: f64,
     /// Largest nodal move of the whole level [mm].
@@ -134,8 +136,8 @@ pub fn refine(
     let start: Vec<Point3<f64>> = x.to_vec();
     let mut record = Refinement {
         rounds: 0,
-        mean_offset_first_mm: f64::NAN,
-        mean_offset_last_mm: f64::NAN,
+        mean_offset_first_mm: None,
+        mean_offset_last_mm: None,
         found_fraction: 0.0,
         max_move_mm: 0.0,
         stiffened_nodes: 0,
@@ -165,9 +167,9 @@ pub fn refine(
             .sum::<f64>()
             / used as f64;
         if round == 0 {
-            record.mean_offset_first_mm = mean_offset;
+            record.mean_offset_first_mm = Some(mean_offset);
         }
-        record.mean_offset_last_mm = mean_offset;
+        record.mean_offset_last_mm = Some(mean_offset);
         record.found_fraction = used as f64 / probes.len().max(1) as f64;
         if round == cfg.rounds {
             break;

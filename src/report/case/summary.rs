@@ -92,9 +92,14 @@ fn fem_verdict(page: &mut Page, deform: &DeformSummary) {
 /// it are coarse by design (their iteration limit is no failure), but an element their guard
 /// stopped at is worth a look.
 fn refined_verdict(page: &mut Page, deform: &DeformSummary, r: &Refinement) {
-    let (first, last) = (r.mean_offset_first_mm, r.mean_offset_last_mm);
+    let offsets = match (r.mean_offset_first_mm, r.mean_offset_last_mm) {
+        (Some(first), Some(last)) => {
+            format!(", mean distance to the bone borders {first:.3} → {last:.3} mm")
+        }
+        _ => String::new(),
+    };
     let levels = format!(
-        "the FEM levels ({} iterations) then the surface level ({} rounds, mean distance to the bone borders {first:.3} → {last:.3} mm)",
+        "the FEM levels ({} iterations) then the surface level ({} rounds{offsets})",
         deform.history.len(),
         r.rounds
     );
@@ -213,12 +218,14 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
             "deformable stage",
             match &deform.refinement {
                 Some(r) => format!(
-                    "FEM levels {}, {} iterations; surface level {} rounds, stop {}, {:.3} mm from the bone borders",
+                    "FEM levels {}, {} iterations; surface level {} rounds, stop {}{}",
                     deform.status,
                     deform.history.len(),
                     r.rounds,
                     r.stop.name(),
                     r.mean_offset_last_mm
+                        .map(|o| format!(", {o:.3} mm from the bone borders"))
+                        .unwrap_or_default()
                 ),
                 None => format!("{}, {} iterations", deform.status, deform.history.len()),
             },

@@ -304,11 +304,17 @@ fn the_surface_level_decides_the_verdict_after_coarse_fem_levels() {
          0.054 mm from the bone borders</td>"
     ));
     assert!(!page.contains("did not converge"));
-    // a surface level that found nothing is a failure, whatever the FEM levels did
+    // a surface level that found nothing is a failure, whatever the FEM levels did (and its
+    // offsets, never measured, are null in the record)
     f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
     f.deform["refinement"]["stop"] = json!("nothing_found");
+    f.deform["refinement"]["mean_offset_first_mm"] = json!(null);
+    f.deform["refinement"]["mean_offset_last_mm"] = json!(null);
     let page = html(&f, Accuracy::NoSegmentation);
-    assert!(page.contains("<p class=\"bad\">The surface level found no bone border"));
+    assert!(page.contains(
+        "<p class=\"bad\">The surface level found no bone border around the registered atlas: \
+         the FEM levels (3 iterations) then the surface level (7 rounds). Check the overlays.</p>"
+    ));
     assert!(page.contains(
         "<p class=\"note\">The FEM levels stopped at their last valid state: element 7 inverted.</p>"
     ));
