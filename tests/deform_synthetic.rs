@@ -22,17 +22,7 @@ use otoatlas::register::refine::{RefineStop, refine};
 #[test]
 fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
     let (lo, hi) = (Point3::new(0.0, 0.0, 0.0), Point3::new(3.0, 2.4, 2.0));
-    let field = move |p: &Point3<f64>| {
-        let inside = (0..3).all(|a| p[a] > lo[a] && p[a] < hi[a]);
-        if inside { 1800.0 } else { -1000.0 }
-    };
-    let grid = Grid {
-        dims: [30, 27, 25],
-        spacing: [0.2; 3],
-        origin: Vector3::new(-1.3, -1.4, -1.5),
-        direction: Matrix3::identity(),
-    };
-    let image = render(&field, &grid, &ImagingParams::clean(11));
+    let image = imaged_block(lo, hi);
     let sampler = Sampler::new(&image).unwrap();
 
     // the atlas: 12 % smaller, off-centre by up to 0.3 mm
@@ -71,21 +61,7 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         MembraneElements::none(),
     )
     .unwrap();
-    // the Kuhn split leaves half the tets negatively oriented; boundaries need them positive
-    let mut tet_mesh = TetMesh {
-        nodes: nodes.clone(),
-        tets: mesh.tets.clone(),
-        regions: vec![1; mesh.tets.len()],
-    };
-    tet_mesh.orient_positive();
-    let faces = tet_mesh.boundary(BoundaryOf::Whole).node_triangles();
-    let probes: Vec<ProbeTriangle> = faces
-        .iter()
-        .map(|f| ProbeTriangle {
-            nodes: *f,
-            kind: ProbeKind::Bone,
-        })
-        .collect();
+    let (_, faces, probes) = oriented_with_probes(&nodes, &mesh.tets);
 
     let truth = shapes::box_mesh(lo, hi, 12);
     let surface = |x: &[Point3<f64>]| TriMesh {
@@ -121,6 +97,29 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         after.masd
     );
     assert!(after.hd95 < 0.2, "HD95 after deform {} mm", after.hd95);
+}
+
+/// The block as a tetrahedral mesh at `nodes` (the Kuhn split leaves half the tets negatively
+/// oriented; boundaries need them positive), its outer faces, and those faces as bone probes.
+fn oriented_with_probes(
+    nodes: &[Point3<f64>],
+    tets: &[[u32; 4]],
+) -> (TetMesh, Vec<[u32; 3]>, Vec<ProbeTriangle>) {
+    let mut mesh = TetMesh {
+        nodes: nodes.to_vec(),
+        tets: tets.to_vec(),
+        regions: vec![1; tets.len()],
+    };
+    mesh.orient_positive();
+    let faces = mesh.boundary(BoundaryOf::Whole).node_triangles();
+    let probes = faces
+        .iter()
+        .map(|f| ProbeTriangle {
+            nodes: *f,
+            kind: ProbeKind::Bone,
+        })
+        .collect();
+    (mesh, faces, probes)
 }
 
 /// The imaged block of the tests: bone inside `[lo, hi]`, air around, 0.2 mm voxels, noise.
@@ -163,20 +162,7 @@ fn the_surface_level_moves_a_stretched_block_onto_the_imaged_block() {
                 )
             })
             .collect();
-        let mut mesh = TetMesh {
-            nodes: nodes.clone(),
-            tets: block.tets.clone(),
-            regions: vec![1; block.tets.len()],
-        };
-        mesh.orient_positive();
-        let faces = mesh.boundary(BoundaryOf::Whole).node_triangles();
-        let probes: Vec<ProbeTriangle> = faces
-            .iter()
-            .map(|f| ProbeTriangle {
-                nodes: *f,
-                kind: ProbeKind::Bone,
-            })
-            .collect();
+        let (mut mesh, faces, probes) = oriented_with_probes(&nodes, &block.tets);
         let surface = |x: &[Point3<f64>]| TriMesh {
             vertices: x.to_vec(),
             triangles: faces.clone(),

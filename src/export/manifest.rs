@@ -75,8 +75,7 @@ pub struct Registration {
     pub deform_status: String,
     pub deform_iterations: u64,
     /// Why the surface level stopped ("plateau", "rounds", "element_guard", "nothing_found",
-    /// "factorisation");
-    /// absent when it was off.
+    /// "factorisation"); absent when it was off.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_stop: Option<String>,
     /// Its rounds.

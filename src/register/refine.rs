@@ -32,7 +32,8 @@ use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::deform::{
-    Border, DeformConfig, ProbeConfig, ProbeTriangle, probe_surface, screen, triangle_neighbours,
+    DeformConfig, ProbeConfig, ProbeTriangle, kept_offsets, node_displacements, probe_borders,
+    screen, triangle_neighbours,
 };
 use crate::image::Sampler;
 use crate::mesh::tet::{TetMesh, signed_volume};
@@ -81,7 +82,7 @@ pub struct Refinement {
     pub found_fraction: f64,
     /// Largest nodal move of the whole level [mm].
     pub max_move_mm: f64,
-    /// Nodes stiffened in the last round to keep its elements from flattening.
+    /// Nodes stiffened in the last kept round to keep its elements from flattening.
     pub stiffened_nodes: usize,
     /// Why it stopped.
     pub stop: RefineStop,
@@ -149,23 +150,13 @@ pub fn refine(
     };
     let mut best = f64::INFINITY;
     for round in 0..=cfg.rounds {
-        let borders: Vec<Option<(Border, f64)>> =
-            probe_surface(probes, x, sampler, step, &probe_cfg)
-                .into_iter()
-                .map(|f| f.map(|p| (p.border, p.area)))
-                .collect();
+        let borders = probe_borders(probes, x, sampler, step, &probe_cfg);
         let kept = screen(&borders, &neighbours, deform.neighbour_tolerance_mm);
-        let used = kept.iter().filter(|k| **k).count();
+        let (used, mean_offset) = kept_offsets(&borders, &kept);
         if used == 0 {
             record.stop = RefineStop::NothingFound;
             break;
         }
-        let mean_offset = borders
-            .iter()
-            .zip(&kept)
-            .filter_map(|(b, k)| b.filter(|_| *k).map(|(bd, _)| bd.offset_mm.abs()))
-            .sum::<f64>()
-            / used as f64;
         if round == 0 {
             record.mean_offset_first_mm = Some(mean_offset);
         }
@@ -179,38 +170,18 @@ pub fn refine(
             break;
         }
         best = mean_offset;
-        let (data, mut weight) = node_targets(probes, &borders, &kept, x);
-        // where the move would flatten an element, its nodes give up their own offsets and
-        // their edges stiffen, and the round is solved again
-        let mut stiffness = vec![1.0f64; n];
-        let mut admissible = None;
-        for _ in 0..=MAX_STIFFENINGS {
-            let Some(u) = system.solve(&data, &weight, &stiffness, cfg.smoothness) else {
-                record.stop = RefineStop::Factorisation;
-                break;
-            };
-            let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
-            let failing = failing_elements(mesh, x, &trial);
-            if failing.is_empty() {
-                admissible = Some(trial);
-                break;
+        let (data, area) = node_displacements(probes, &borders, &kept, x);
+        match admissible_move(mesh, &system, x, &data, relative(&area), cfg.smoothness) {
+            Ok((moved, stiffened)) => {
+                x.copy_from_slice(&moved);
+                record.stiffened_nodes = stiffened;
+                record.rounds += 1;
             }
-            for t in failing {
-                for k in mesh.tets[t] {
-                    weight[k as usize] = 0.0;
-                    stiffness[k as usize] *= STIFFEN;
-                }
+            Err(stop) => {
+                record.stop = stop;
+                break;
             }
         }
-        record.stiffened_nodes = stiffness.iter().filter(|s| **s > 1.0).count();
-        let Some(trial) = admissible else {
-            if record.stop != RefineStop::Factorisation {
-                record.stop = RefineStop::ElementGuard;
-            }
-            break;
-        };
-        x.copy_from_slice(&trial);
-        record.rounds += 1;
     }
     record.max_move_mm = x
         .iter()
@@ -236,41 +207,47 @@ fn tet_edges(mesh: &TetMesh, n: usize) -> Vec<(u32, u32)> {
     edges
 }
 
-/// Per node, the area-weighted mean displacement its kept triangles found, and its probed
-/// area relative to the mean over the found nodes (0 where nothing was found).
-fn node_targets(
-    probes: &[ProbeTriangle],
-    borders: &[Option<(Border, f64)>],
-    kept: &[bool],
-    x: &[Point3<f64>],
-) -> (Vec<Vector3<f64>>, Vec<f64>) {
-    let n = x.len();
-    let mut sum = vec![Vector3::zeros(); n];
-    let mut area = vec![0.0f64; n];
-    for ((tri, b), k) in probes.iter().zip(borders).zip(kept) {
-        let (Some((bd, a)), true) = (b, *k) else {
-            continue;
-        };
-        let [p, q, r] = tri.nodes.map(|i| x[i as usize]);
-        let centre = (p.coords + q.coords + r.coords) / 3.0;
-        let displacement = bd.point.coords - centre;
-        for node in tri.nodes {
-            sum[node as usize] += displacement * *a;
-            area[node as usize] += *a;
-        }
-    }
+/// Each node's probed area relative to the mean over the nodes that have one.
+fn relative(area: &[f64]) -> Vec<f64> {
     let found = area.iter().filter(|a| **a > 0.0).count().max(1);
     let mean = area.iter().sum::<f64>() / found as f64;
-    let data = sum
-        .iter()
-        .zip(&area)
-        .map(|(s, a)| if *a > 0.0 { s / *a } else { Vector3::zeros() })
-        .collect();
-    let weight = area
-        .iter()
+    area.iter()
         .map(|a| a / mean.max(f64::MIN_POSITIVE))
-        .collect();
-    (data, weight)
+        .collect()
+}
+
+/// One round's move from `x` towards the displacements `data` (weighed by `weight`): where
+/// it would flatten an element, that element's nodes give up their own offsets and their
+/// edges stiffen, and the round is solved again, up to [`MAX_STIFFENINGS`] times. Returns the
+/// moved nodes with the number of nodes stiffened.
+fn admissible_move(
+    mesh: &TetMesh,
+    system: &Smoothing,
+    x: &[Point3<f64>],
+    data: &[Vector3<f64>],
+    mut weight: Vec<f64>,
+    smoothness: f64,
+) -> Result<(Vec<Point3<f64>>, usize), RefineStop> {
+    let floors = quality_floors(mesh, x);
+    let mut stiffness = vec![1.0f64; x.len()];
+    for _ in 0..=MAX_STIFFENINGS {
+        let u = system
+            .solve(data, &weight, &stiffness, smoothness)
+            .ok_or(RefineStop::Factorisation)?;
+        let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
+        let failing = failing_elements(mesh, &floors, &trial);
+        if failing.is_empty() {
+            let stiffened = stiffness.iter().filter(|s| **s > 1.0).count();
+            return Ok((trial, stiffened));
+        }
+        for t in failing {
+            for k in mesh.tets[t] {
+                weight[k as usize] = 0.0;
+                stiffness[k as usize] *= STIFFEN;
+            }
+        }
+    }
+    Err(RefineStop::ElementGuard)
 }
 
 /// The smoothing system of one mesh: its edges and the symbolic Cholesky factorisation of
@@ -341,15 +318,20 @@ impl Smoothing {
     }
 }
 
-/// The tetrahedra whose shape quality at `after` falls below [`MIN_QUALITY`], or, if it was
-/// below it at `before` already (a sliver of the atlas, an element the FEM levels flattened),
-/// below [`SLIVER_KEEP`] of its quality at `before`.
-fn failing_elements(mesh: &TetMesh, before: &[Point3<f64>], after: &[Point3<f64>]) -> Vec<usize> {
+/// The least shape quality each tetrahedron may keep after a move from `before`:
+/// [`MIN_QUALITY`], or, for one already below it (a sliver of the atlas, an element the FEM
+/// levels flattened), [`SLIVER_KEEP`] of its quality at `before`.
+fn quality_floors(mesh: &TetMesh, before: &[Point3<f64>]) -> Vec<f64> {
+    mesh.tets
+        .iter()
+        .map(|t| MIN_QUALITY.min(SLIVER_KEEP * quality(before, t)))
+        .collect()
+}
+
+/// The tetrahedra whose shape quality at `after` falls below their floor.
+fn failing_elements(mesh: &TetMesh, floors: &[f64], after: &[Point3<f64>]) -> Vec<usize> {
     (0..mesh.tets.len())
-        .filter(|&t| {
-            let tet = &mesh.tets[t];
-            quality(after, tet) < MIN_QUALITY.min(SLIVER_KEEP * quality(before, tet))
-        })
+        .filter(|&t| quality(after, &mesh.tets[t]) < floors[t])
         .collect()
 }
 

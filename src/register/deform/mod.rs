@@ -178,11 +178,7 @@ pub fn deform(
     let (mut best_offset, mut stalled) = (f64::INFINITY, 0usize);
     let mut spring_scale = vec![1.0f64; n];
     for iteration in 1..=cfg.max_iterations {
-        let borders: Vec<Option<(Border, f64)>> =
-            probe_surface(probes, &x, sampler, step, &cfg.probe)
-                .into_iter()
-                .map(|f| f.map(|p| (p.border, p.area)))
-                .collect();
+        let borders = probe_borders(probes, &x, sampler, step, &cfg.probe);
         let found = borders.iter().filter(|b| b.is_some()).count();
         if iteration == 1 && found == 0 {
             return Err(DeformError::NothingFound);
@@ -196,13 +192,7 @@ pub fn deform(
             cfg.spring_stiffness_per_area,
             &spring_scale,
         );
-        let used = kept.iter().filter(|k| **k).count();
-        let mean_offset = borders
-            .iter()
-            .zip(&kept)
-            .filter_map(|(b, k)| b.filter(|_| *k).map(|(bd, _)| bd.offset_mm.abs()))
-            .sum::<f64>()
-            / used.max(1) as f64;
+        let (used, mean_offset) = kept_offsets(&borders, &kept);
         let before = x.clone();
         let outcome = solver.solve_with_springs(&mut x, &springs, &options);
         let mut updates: Vec<f64> = x.iter().zip(&before).map(|(p, q)| (p - q).norm()).collect();
@@ -405,27 +395,71 @@ fn node_springs(
     stiffness_per_area: f64,
     scale: &[f64],
 ) -> Vec<Spring> {
-    let n = x.len();
-    let mut sum = vec![Vector3::zeros(); n];
-    let mut weight = vec![0.0f64; n];
-    for ((tri, b), k) in probes.iter().zip(borders).zip(kept) {
-        let (Some((bd, area)), true) = (b, *k) else {
-            continue;
-        };
-        let [a, bb, c] = tri.nodes.map(|i| x[i as usize]);
-        let centre = (a.coords + bb.coords + c.coords) / 3.0;
-        let displacement = bd.point.coords - centre;
-        for node in tri.nodes {
-            sum[node as usize] += displacement * *area;
-            weight[node as usize] += *area;
-        }
-    }
-    (0..n)
-        .filter(|&k| weight[k] > 0.0)
+    let (displacement, area) = node_displacements(probes, borders, kept, x);
+    (0..x.len())
+        .filter(|&k| area[k] > 0.0)
         .map(|k| Spring {
             node: k as u32,
-            target: x[k] + sum[k] / weight[k],
-            stiffness: stiffness_per_area * scale[k] * weight[k] / 3.0,
+            target: x[k] + displacement[k],
+            stiffness: stiffness_per_area * scale[k] * area[k] / 3.0,
         })
         .collect()
+}
+
+/// Per node, the area-weighted mean displacement its kept triangles found (from each
+/// triangle's centre to its border point) and the area of those triangles (0, and no
+/// displacement, where none was kept). The targets of the FEM levels' springs and of the
+/// surface level.
+pub(crate) fn node_displacements(
+    probes: &[ProbeTriangle],
+    borders: &[Option<(Border, f64)>],
+    kept: &[bool],
+    x: &[Point3<f64>],
+) -> (Vec<Vector3<f64>>, Vec<f64>) {
+    let n = x.len();
+    let mut sum = vec![Vector3::zeros(); n];
+    let mut area = vec![0.0f64; n];
+    for ((tri, b), k) in probes.iter().zip(borders).zip(kept) {
+        let (Some((bd, a)), true) = (b, *k) else {
+            continue;
+        };
+        let [p, q, r] = tri.nodes.map(|i| x[i as usize]);
+        let centre = (p.coords + q.coords + r.coords) / 3.0;
+        let displacement = bd.point.coords - centre;
+        for node in tri.nodes {
+            sum[node as usize] += displacement * *a;
+            area[node as usize] += *a;
+        }
+    }
+    let mean = sum
+        .iter()
+        .zip(&area)
+        .map(|(s, a)| if *a > 0.0 { s / *a } else { Vector3::zeros() })
+        .collect();
+    (mean, area)
+}
+
+/// The borders found from every triangle of `probes` (nodes at `x`) with the triangle's area.
+pub(crate) fn probe_borders(
+    probes: &[ProbeTriangle],
+    x: &[Point3<f64>],
+    sampler: &Sampler,
+    step: f64,
+    cfg: &ProbeConfig,
+) -> Vec<Option<(Border, f64)>> {
+    probe_surface(probes, x, sampler, step, cfg)
+        .into_iter()
+        .map(|f| f.map(|p| (p.border, p.area)))
+        .collect()
+}
+
+/// How many border points were kept, and their mean |offset| [mm] (0 when none was).
+pub(crate) fn kept_offsets(borders: &[Option<(Border, f64)>], kept: &[bool]) -> (usize, f64) {
+    let used = kept.iter().filter(|k| **k).count();
+    let sum: f64 = borders
+        .iter()
+        .zip(kept)
+        .filter_map(|(b, k)| b.filter(|_| *k).map(|(bd, _)| bd.offset_mm.abs()))
+        .sum();
+    (used, sum / used.max(1) as f64)
 }

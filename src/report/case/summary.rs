@@ -77,11 +77,7 @@ fn fem_verdict(page: &mut Page, deform: &DeformSummary) {
         other => page.paragraph(
             &format!(
                 "The deformable registration did not converge ({other}{}): check the overlays.",
-                deform
-                    .message
-                    .as_deref()
-                    .map(|m| format!(": {m}"))
-                    .unwrap_or_default()
+                guard_message(deform)
             ),
             Some("bad"),
         ),
@@ -103,51 +99,57 @@ fn refined_verdict(page: &mut Page, deform: &DeformSummary, r: &Refinement) {
         deform.history.len(),
         r.rounds
     );
-    match r.stop {
-        RefineStop::Plateau => page.paragraph(
-            &format!(
+    let (text, class) = match r.stop {
+        RefineStop::Plateau => (
+            format!(
                 "The deformable registration converged: {levels}; stop: the distance stopped falling."
             ),
-            Some("ok"),
+            "ok",
         ),
-        RefineStop::Rounds => page.paragraph(
-            &format!(
+        RefineStop::Rounds => (
+            format!(
                 "The deformable registration reached the surface level's round limit: {levels}; the distance was still falling."
             ),
-            Some("note"),
+            "note",
         ),
-        RefineStop::ElementGuard => page.paragraph(
-            &format!(
+        RefineStop::ElementGuard => (
+            format!(
                 "The deformable registration stopped where a further move would flatten an element: {levels}. Check the overlays."
             ),
-            Some("note"),
+            "note",
         ),
-        RefineStop::NothingFound => page.paragraph(
-            &format!(
+        RefineStop::NothingFound => (
+            format!(
                 "The surface level found no bone border around the registered atlas: {levels}. Check the overlays."
             ),
-            Some("bad"),
+            "bad",
         ),
-        RefineStop::Factorisation => page.paragraph(
-            &format!(
+        RefineStop::Factorisation => (
+            format!(
                 "The surface level could not solve its smoothing system (out of memory?): {levels}. Check the overlays."
             ),
-            Some("bad"),
+            "bad",
         ),
     };
+    page.paragraph(&text, Some(class));
     if deform.status == "inversion_guard" {
         page.paragraph(
             &format!(
                 "The FEM levels stopped at their last valid state{}.",
-                deform
-                    .message
-                    .as_deref()
-                    .map(|m| format!(": {m}"))
-                    .unwrap_or_default()
+                guard_message(deform)
             ),
             Some("note"),
         );
     }
+}
+
+/// The FEM guard's message as ": message", or nothing.
+fn guard_message(deform: &DeformSummary) -> String {
+    deform
+        .message
+        .as_deref()
+        .map(|m| format!(": {m}"))
+        .unwrap_or_default()
 }
 
 /// The direction each voxel axis points to, as LPS letters (e.g. "LPS"), "oblique" marked.
