@@ -167,3 +167,61 @@ fn landmarks_sit_at_their_definitions() {
         );
     }
 }
+
+/// A fused chain segmentation (a CT's, which does not separate the ossicles) is scored against
+/// `Atlas::chain_surface`: the outer surface of bones and joints as one solid. Built here the
+/// other way round, from the ossicles' and the joints' own closed surfaces with every facet
+/// two of them share cancelled, it must be the same surface, closed, and without the
+/// joint-facing facets of the ossicles.
+#[test]
+fn the_chain_surface_is_the_outer_surface_of_bones_and_joints() {
+    use otoatlas::atlas::Part;
+    use otoatlas::mesh::tet::BoundaryOf;
+    use otoatlas::mesh::topology::surface_topology;
+    let atlas = atlas();
+    let nodes = atlas.nodes().to_vec();
+    let mut pieces: Vec<Vec<[u32; 3]>> = Part::BONES
+        .iter()
+        .map(|p| atlas.part_triangles(*p))
+        .collect();
+    for joint in Region::JOINTS {
+        pieces.push(
+            atlas
+                .mesh
+                .tets
+                .boundary(BoundaryOf::Region(joint.label()))
+                .node_triangles(),
+        );
+    }
+    let mut count: BTreeMap<[u32; 3], usize> = BTreeMap::new();
+    for t in pieces.iter().flatten() {
+        let mut k = *t;
+        k.sort_unstable();
+        *count.entry(k).or_default() += 1;
+    }
+    let area = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| nodes[i as usize]);
+        (b - a).cross(&(c - a)).norm() / 2.0
+    };
+    let outer: f64 = count
+        .iter()
+        .filter(|(_, n)| **n == 1)
+        .map(|(t, _)| area(t))
+        .sum();
+    let shared: f64 = count
+        .iter()
+        .filter(|(_, n)| **n == 2)
+        .map(|(t, _)| area(t))
+        .sum();
+    assert!(count.values().all(|n| *n <= 2), "a facet on three surfaces");
+    let chain = atlas.chain_surface(&nodes);
+    assert!(
+        (chain.area() - outer).abs() < 1e-9 * outer,
+        "chain surface {:.4} mm², outer facets {outer:.4} mm²",
+        chain.area()
+    );
+    // the joints' interfaces with their bones: a few mm² each side
+    assert!(shared > 1.0, "shared facets {shared:.3} mm²");
+    let topology = surface_topology(&chain);
+    assert!(topology.is_closed_oriented_manifold(), "{topology:?}");
+}

@@ -8,7 +8,8 @@
 //!   its landmarks are the fixture's (docs/anatomy.md, "Real chains").
 //! - The CT-derived chain `455` (a right ear, one fused surface inflated by the CT's partial
 //!   volume, rendered as it is); its landmarks were picked once by the method of
-//!   docs/anatomy.md ("Real chains") and are kept here.
+//!   docs/anatomy.md ("Real chains") and are kept here. Its fused truth is compared with the
+//!   registered chain's outer surface as one solid (bones and joints).
 //!
 //! The cases use seeds 101-104 of each chain, which no setting of the registration was chosen
 //! on (the development cases were seeds 1-4). The bounds below are regression bounds at the
@@ -31,10 +32,10 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
 
 /// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm], and
 /// the least improvement of the chain MASD over the landmark fit.
-const MASD_MAX_VOXELS: f64 = 1.3;
-const MASD_MAX_MM: f64 = 0.3;
+const MASD_MAX_VOXELS: f64 = 1.0;
+const MASD_MAX_MM: f64 = 0.25;
 const HD95_MAX_MM: f64 = 1.7;
-const MIN_IMPROVEMENT: f64 = 0.4;
+const MIN_IMPROVEMENT: f64 = 0.45;
 
 fn run_ok(args: &[&str]) {
     let out = otoatlas(args);

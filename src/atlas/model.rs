@@ -12,6 +12,7 @@ use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
 use super::materials::KG_PER_M3_TO_G_PER_MM3;
+use super::region::Region;
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::fem::{
     FemError, FemModel, MembraneElements, MembraneMaterial, TetElements, TetMaterial,
@@ -276,6 +277,31 @@ impl Atlas {
     /// The surface of a part with the nodes at `nodes`, as a compact triangle mesh.
     pub fn part_surface(&self, part: Part, nodes: &[Point3<f64>]) -> TriMesh {
         compact(&self.part_triangles(part), nodes)
+    }
+
+    /// The outer surface of the ossicular chain as one solid, with the nodes at `nodes`: the
+    /// boundary of the ossicles' tetrahedra together with their joints' (the regions named
+    /// as [`Region::JOINTS`]). A segmentation that does not separate the ossicles (a CT's
+    /// fused chain) is this surface; the ossicles' own surfaces would add the facets where
+    /// each meets its joint, which lie inside such a solid. Empty when the atlas has no
+    /// ossicle.
+    pub fn chain_surface(&self, nodes: &[Point3<f64>]) -> TriMesh {
+        let joints: Vec<&str> = Region::JOINTS.iter().map(|r| r.name()).collect();
+        let labels: Vec<u16> = self
+            .regions
+            .iter()
+            .filter(|r| Part::BONES.contains(&r.part) || joints.contains(&r.name.as_str()))
+            .map(|r| r.label)
+            .collect();
+        if labels.is_empty() {
+            return compact(&[], nodes);
+        }
+        let triangles = self
+            .mesh
+            .tets
+            .boundary(BoundaryOf::Regions(&labels))
+            .node_triangles();
+        compact(&triangles, nodes)
     }
 
     /// The flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm) of each membrane triangle, in

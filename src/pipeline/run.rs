@@ -364,17 +364,12 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     if let Some((_, per_structure)) = &scores {
         for (name, s) in per_structure {
             let path = registered_dir.join("deviation").join(format!("{name}.ply"));
-            let part = crate::atlas::Part::STRUCTURES
-                .into_iter()
-                .find(|p| p.name() == name);
-            if let Some(part) = part {
-                let attrs = VertexAttributes {
-                    quality: Some(s.deviation.clone()),
-                    colors: Some(s.colours.clone()),
-                };
-                write_ply(&path, &atlas.part_surface(part, &nodes), &attrs)?;
-                files.push(path);
-            }
+            let attrs = VertexAttributes {
+                quality: Some(s.deviation.clone()),
+                colors: Some(s.colours.clone()),
+            };
+            write_ply(&path, &s.surface, &attrs)?;
+            files.push(path);
         }
     }
     write_json_file(
@@ -435,7 +430,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
                 scores: value,
                 deviation: per_structure
                     .iter()
-                    .map(|(name, s)| (name.as_str(), s.deviation.as_slice()))
+                    .map(|(name, s)| (name.as_str(), (&s.surface, s.deviation.as_slice())))
                     .collect(),
                 reference: &reference.surfaces,
             },

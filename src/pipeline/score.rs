@@ -14,7 +14,7 @@ use crate::atlas::{Atlas, Part};
 use crate::config::IngestConfig;
 use crate::mesh::TriMesh;
 use crate::meshdev::sampling::DEFAULT_SEED;
-use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures, merge};
+use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures};
 use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
 
 /// Area samples per surface and direction: the sampling error of a mean distance is then far
@@ -44,6 +44,10 @@ impl Reference {
 #[derive(Debug, Clone, Serialize)]
 pub struct StructureScore {
     pub distances: SurfaceDistances,
+    /// The registered surface that was scored (a structure's own, or the chain's outer
+    /// surface for a fused reference).
+    #[serde(skip)]
+    pub surface: TriMesh,
     /// Signed distance of each registered-surface vertex to the reference [mm].
     #[serde(skip)]
     pub deviation: Vec<f64>,
@@ -67,9 +71,7 @@ pub fn score(
         ..CompareOptions::with_tolerance(tolerance_mm)
     };
     let mut out = BTreeMap::new();
-    // each structure against its own reference, and a fused reference (one surface for the
-    // whole chain, as a CT segmentation that does not separate the ossicles gives) against
-    // the union of the registered ossicles
+    // each structure against its own reference
     let mut jobs: Vec<(&str, TriMesh, &TriMesh)> = Vec::new();
     for part in Part::STRUCTURES {
         if let Some(truth) = reference.surfaces.get(part.name())
@@ -78,17 +80,14 @@ pub fn score(
             jobs.push((part.name(), atlas.part_surface(part, nodes), truth));
         }
     }
-    for (fused, parts) in FUSED_NAMES {
+    // a fused reference (one surface for the whole chain, as a CT segmentation that does not
+    // separate the ossicles gives) against the registered chain's outer surface as one solid
+    for (fused, _) in FUSED_NAMES {
         let Some(truth) = reference.surfaces.get(fused) else {
             continue;
         };
-        let surfaces: Vec<TriMesh> = Part::BONES
-            .iter()
-            .filter(|p| parts.contains(&p.name()) && !atlas.labels_of(**p).is_empty())
-            .map(|p| atlas.part_surface(*p, nodes))
-            .collect();
-        if surfaces.len() == parts.len() {
-            jobs.push((fused, merge(&surfaces.iter().collect::<Vec<_>>()), truth));
+        if Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty()) {
+            jobs.push((fused, atlas.chain_surface(nodes), truth));
         }
     }
     for (name, test, truth) in jobs {
@@ -97,6 +96,7 @@ pub fn score(
             name.to_string(),
             StructureScore {
                 distances: c.distances,
+                surface: test,
                 deviation: c.deviation.quality,
                 colours: c.deviation.colours,
             },

@@ -6,7 +6,6 @@ use std::collections::BTreeMap;
 
 use super::{Accuracy, CaseReportInput, mm};
 use crate::atlas::Part;
-use crate::mesh::TriMesh;
 use crate::meshdev::ColourRange;
 use crate::report::error::ReportError;
 use crate::report::html::{Figure, FigureContent, Page};
@@ -95,11 +94,7 @@ pub(super) fn metrics_table(
     );
 }
 
-pub(super) fn histograms(
-    page: &mut Page,
-    input: &CaseReportInput,
-    registered: &BTreeMap<String, TriMesh>,
-) -> Result<(), ReportError> {
+pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(), ReportError> {
     page.heading("Signed distances of the registered surfaces");
     let deviation = match &input.accuracy {
         Accuracy::NoSegmentation => {
@@ -121,17 +116,14 @@ pub(super) fn histograms(
     };
     let range = ColourRange::default();
     let mut figures = Vec::new();
-    for (name, values) in deviation {
-        let Some(mesh) = registered
-            .get(*name)
-            .filter(|m| m.vertices.len() == values.len())
-        else {
+    for (name, (mesh, values)) in deviation {
+        if mesh.vertices.len() != values.len() {
             page.paragraph(
                 &format!("{name}: the deviation map does not match the registered surface."),
                 Some("bad"),
             );
             continue;
-        };
+        }
         // each triangle corner carries a third of the triangle's area
         let mut corner_values = Vec::with_capacity(3 * mesh.triangles.len());
         let mut weights = Vec::with_capacity(3 * mesh.triangles.len());

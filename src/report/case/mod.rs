@@ -47,9 +47,9 @@ pub enum Accuracy<'a> {
     Scored {
         /// The `scores` object of `metrics.json`.
         scores: &'a Value,
-        /// Per structure: the signed distance of each registered-surface vertex [mm], in the
-        /// vertex order of `Atlas::part_surface`.
-        deviation: BTreeMap<&'a str, &'a [f64]>,
+        /// Per scored structure: the registered surface that was scored and the signed
+        /// distance of each of its vertices [mm].
+        deviation: BTreeMap<&'a str, (&'a TriMesh, &'a [f64])>,
         /// The segmentation's surfaces by structure name.
         reference: &'a BTreeMap<String, TriMesh>,
     },
@@ -170,7 +170,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
         page.figures(&figures);
     }
 
-    histograms(&mut page, input, &registered)?;
+    histograms(&mut page, input)?;
     convergence(&mut page, &deform)?;
     mechanics_section(&mut page, input.mechanics)?;
     Ok(page.finish())

@@ -19,7 +19,7 @@ struct Fixture {
     rigid: Vec<Point3<f64>>,
     registered: Vec<Point3<f64>>,
     reference: BTreeMap<String, TriMesh>,
-    deviation: BTreeMap<String, Vec<f64>>,
+    deviation: BTreeMap<String, (TriMesh, Vec<f64>)>,
     scores: Value,
     deform: Value,
     fit: RigidFit,
@@ -67,7 +67,10 @@ fn fixture() -> Fixture {
     let mut deviation = BTreeMap::new();
     for part in Part::STRUCTURES {
         let mesh = atlas.part_surface(part, &truth);
-        deviation.insert(part.name().to_string(), vec![0.1; mesh.vertices.len()]);
+        deviation.insert(
+            part.name().to_string(),
+            (mesh.clone(), vec![0.1; mesh.vertices.len()]),
+        );
         reference.insert(part.name().to_string(), mesh);
     }
     let scores = json!({
@@ -197,7 +200,7 @@ fn scored_case_shows_every_section_with_its_numbers() {
             deviation: f
                 .deviation
                 .iter()
-                .map(|(n, d)| (n.as_str(), d.as_slice()))
+                .map(|(n, (m, d))| (n.as_str(), (m, d.as_slice())))
                 .collect(),
             reference: &f.reference,
         },
