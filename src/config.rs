@@ -67,6 +67,9 @@ pub struct RigidConfig {
 pub struct IngestConfig {
     /// Largest single input file accepted, in MiB (guards against malformed length fields).
     pub max_file_mib: f64,
+    /// Largest image volume held in memory, in MiB of 32-bit voxels: checked from the header's
+    /// sizes before any voxel is read.
+    pub max_volume_mib: f64,
     /// Largest relative deviation of one slice gap from the median gap before the series is
     /// called non-uniform (a missing or extra slice), as a fraction of the median gap.
     pub slice_gap_tolerance: f64,
@@ -132,6 +135,7 @@ impl Config {
             }
         };
         positive("ingest.max_file_mib", self.ingest.max_file_mib)?;
+        positive("ingest.max_volume_mib", self.ingest.max_volume_mib)?;
         positive(
             "ingest.slice_gap_tolerance",
             self.ingest.slice_gap_tolerance,

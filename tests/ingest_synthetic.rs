@@ -423,3 +423,158 @@ fn pydicom_and_nibabel_read_what_we_write() {
         &["pydicom", "nibabel", "numpy"],
     );
 }
+
+#[test]
+fn a_frame_count_beyond_the_file_is_refused_before_anything_is_sized_by_it() {
+    let (dir, paths) = series_dir("frames");
+    // a billion frames in a 1 KB slice: the earlier reader allocated 128 GB and aborted
+    edit_file(&paths[1], |obj| {
+        obj.put(DataElement::new(
+            tags::NUMBER_OF_FRAMES,
+            VR::IS,
+            "1000000000",
+        ));
+    });
+    assert_bad_input(dir.path(), "NumberOfFrames (0028,0008) is 1000000000");
+}
+
+/// Byte patches of a file: (offset, bytes written there).
+type Patches = Vec<(usize, Vec<u8>)>;
+
+/// Writes a small valid NIfTI-1 file and applies `patches` to it.
+fn patched_nifti(dir: &Path, name: &str, patches: &[(usize, Vec<u8>)]) -> PathBuf {
+    let vol = pattern([6, 5, 4], [0.25, 0.25, 0.25], Matrix3::identity());
+    let values: Vec<i16> = vol.data.iter().map(|v| *v as i16).collect();
+    let path = dir.join(name);
+    otoatlas::image::nifti::write_nifti(&path, &vol, &values).unwrap();
+    let mut bytes = fs::read(&path).unwrap();
+    for (offset, patch) in patches {
+        bytes[*offset..*offset + patch.len()].copy_from_slice(patch);
+    }
+    fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn nifti_headers_that_lie_are_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // NIfTI-1 header offsets: dim 40, datatype 70, bitpix 72, scl_slope 112, scl_inter 116,
+    // sform_code 254, srow_x 280
+    let cases: [(&str, Patches, &str); 5] = [
+        // the nifti crate panicked on these two
+        (
+            "bitpix.nii",
+            vec![(72, 8i16.to_le_bytes().to_vec())],
+            "bitpix",
+        ),
+        (
+            "complex.nii",
+            vec![(70, 32i16.to_le_bytes().to_vec())],
+            "datatype",
+        ),
+        (
+            "nan_inter.nii",
+            vec![
+                (112, 1f32.to_le_bytes().to_vec()),
+                (116, f32::NAN.to_le_bytes().to_vec()),
+            ],
+            "scl_inter",
+        ),
+        (
+            "nan_origin.nii",
+            vec![
+                (254, 1i16.to_le_bytes().to_vec()),
+                (292, f32::NAN.to_le_bytes().to_vec()),
+            ],
+            "affine",
+        ),
+        // 30000^3 voxels claimed: refused by the memory budget before any voxel is read
+        (
+            "huge.nii",
+            vec![
+                (42, 30000i16.to_le_bytes().to_vec()),
+                (44, 30000i16.to_le_bytes().to_vec()),
+                (46, 30000i16.to_le_bytes().to_vec()),
+            ],
+            "ingest.max_volume_mib",
+        ),
+    ];
+    for (name, patches, needle) in cases {
+        let path = patched_nifti(d, name, &patches);
+        assert_bad_input(&path, needle);
+    }
+}
+
+/// A .nii.gz whose header claims a small volume but whose stream inflates to 3 GB: only the
+/// bytes the header claims are inflated, so the file reads within a 1 GB address space (the
+/// earlier reader inflated up to `max_file_mib`, 4 GB, before looking at the header).
+#[test]
+fn a_gzip_bomb_is_inflated_only_as_far_as_its_header_claims() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = patched_nifti(dir.path(), "small.nii", &[]);
+    let bomb = dir.path().join("bomb.nii.gz");
+    let mut gz = flate2::write::GzEncoder::new(
+        fs::File::create(&bomb).unwrap(),
+        flate2::Compression::fast(),
+    );
+    gz.write_all(&fs::read(&plain).unwrap()).unwrap();
+    let zeros = vec![0u8; 1 << 20];
+    for _ in 0..3072 {
+        gz.write_all(&zeros).unwrap();
+    }
+    gz.finish().unwrap();
+    let exe = env!("CARGO_BIN_EXE_otoatlas");
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 1048576 && exec '{exe}' inspect '{}' --json",
+            bomb.display()
+        ))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(info["dims"], serde_json::json!([6, 5, 4]), "{info}");
+}
+
+/// nibabel writes a big-endian NIfTI-1 with scaling, an .hdr/.img pair and a gzipped NIfTI-2;
+/// otoatlas reads each as nibabel does (geometry in LPS, every value).
+#[test]
+fn nifti_variants_written_by_nibabel_read_as_nibabel_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(stdout) = common::python::run_python(
+        "write_nifti_variants.py",
+        &[dir.path()],
+        &["nibabel", "numpy"],
+    ) else {
+        return;
+    };
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let report = report.as_object().unwrap();
+    assert_eq!(report.len(), 3);
+    for (name, want) in report {
+        let img = read(&dir.path().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let v = &img.volume;
+        let dims: Vec<usize> = serde_json::from_value(want["dims"].clone()).unwrap();
+        assert_eq!(v.dims.to_vec(), dims, "{name}");
+        let affine: Vec<Vec<f64>> = serde_json::from_value(want["affine_ras"].clone()).unwrap();
+        let m = v.index_to_world_matrix();
+        let flip = [-1.0, -1.0, 1.0];
+        for r in 0..3 {
+            let row: Vec<f64> = (0..3).map(|c| m[(r, c)]).collect();
+            let expected: Vec<f64> = (0..3).map(|c| flip[r] * affine[r][c]).collect();
+            assert_close(&row, &expected, 1e-6, name);
+            assert_close(&[v.origin[r]], &[flip[r] * affine[r][3]], 1e-6, name);
+        }
+        let sum: f64 = v.data.iter().map(|x| *x as f64).sum();
+        assert_close(&[sum], &[want["sum"].as_f64().unwrap()], 1e-6, name);
+        for probe in want["voxels"].as_array().unwrap() {
+            let p: [f64; 4] = serde_json::from_value(probe.clone()).unwrap();
+            let value = v.data[v.index(p[0] as usize, p[1] as usize, p[2] as usize)] as f64;
+            assert_close(&[value], &[p[3]], 1e-6, name);
+        }
+    }
+}

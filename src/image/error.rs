@@ -31,6 +31,15 @@ pub enum ImageError {
     #[error("{path}: no DICOM image series found{}", skipped_note(.skipped))]
     NoImageSeries { path: PathBuf, skipped: usize },
     #[error(
+        "{path}: a volume of {dims} voxels takes {size_mib:.0} MiB, above the limit of {max_mib:.0} MiB (ingest.max_volume_mib)"
+    )]
+    VolumeTooLarge {
+        path: PathBuf,
+        dims: String,
+        size_mib: f64,
+        max_mib: f64,
+    },
+    #[error(
         "{path}: the folder holds {count} image series; choose one with --series (a UID or a hash prefix):\n{listing}"
     )]
     SeveralSeries {

@@ -59,7 +59,7 @@ pub fn load(
         });
     }
     if path.is_file() && nifti::is_nifti_path(path) {
-        return nifti::read_nifti(path, (cfg.max_file_mib * 1048576.0) as u64);
+        return nifti::read_nifti(path, cfg);
     }
     dicom::read_dicom(path, series, cfg)
 }

@@ -1,5 +1,8 @@
-//! Reading NIfTI-1 (with the `nifti` crate) and NIfTI-2 (a small header parser of our own:
-//! the crate reads only 348-byte headers) into a [`Volume`] in LPS millimetres.
+//! Reading NIfTI-1 (header parsed by the `nifti` crate) and NIfTI-2 (a small header parser of
+//! our own: the crate reads only 348-byte headers) into a [`Volume`] in LPS millimetres. The
+//! voxels are decoded here for both: the sizes a header claims are checked (datatype against
+//! bitpix, data against the bytes present and the memory budget) before anything is read,
+//! which the crate's reader does not do (it panics or allocates on a lying header).
 //!
 //! The affine follows the NIfTI-1 standard: the sform when `sform_code > 0`, else the qform
 //! when `qform_code > 0`, else pixdim alone (method 1: origin 0, no centring, unlike nibabel's
@@ -10,15 +13,19 @@ use std::io::Read;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
-use ndarray::{Axis, Ix3, ShapeBuilder};
-use nifti::{IntoNdArray, NiftiObject, ReaderOptions};
+use ndarray::ShapeBuilder;
 
+use crate::config::IngestConfig;
 use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
 
 /// The header fields geometry and decoding need, from a NIfTI-1 or NIfTI-2 header.
 #[derive(Debug, Clone)]
 struct Header {
     version: u8,
+    /// Voxels after the header in the same file (`n+1`, `n+2`), not in a `.img` beside it.
+    single_file: bool,
+    /// NIfTI-1's bits per voxel, which must agree with `datatype`.
+    bitpix: Option<i16>,
     dim: [i64; 8],
     pixdim: [f64; 8],
     datatype: i16,
@@ -54,41 +61,67 @@ pub fn is_nifti_path(path: &Path) -> bool {
     name.ends_with(".nii") || name.ends_with(".nii.gz") || name.ends_with(".hdr")
 }
 
-fn read_bytes(path: &Path, max_bytes: u64) -> Result<Vec<u8>, ImageError> {
-    let io = |source| ImageError::Io {
+/// Bytes in MiB, for messages.
+const MIB: f64 = 1048576.0;
+
+/// The file's bytes as stored, inflated when its name ends in `.gz`.
+fn open_reader(path: &Path) -> Result<Box<dyn Read>, ImageError> {
+    let file = std::fs::File::open(path).map_err(|source| ImageError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let mut bytes = Vec::new();
+    })?;
     let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
-    let reader: Box<dyn Read> = if gz {
-        Box::new(flate2::read::GzDecoder::new(file))
+    Ok(if gz {
+        Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
     } else {
-        Box::new(file)
-    };
+        Box::new(std::io::BufReader::new(file))
+    })
+}
+
+/// Appends to `bytes` from `reader` until it holds `n` bytes or the stream ends: a gzip
+/// stream is never inflated beyond what is asked for.
+fn read_up_to(
+    reader: &mut dyn Read,
+    bytes: &mut Vec<u8>,
+    n: u64,
+    path: &Path,
+) -> Result<(), ImageError> {
+    let want = n.saturating_sub(bytes.len() as u64);
     reader
-        .take(max_bytes + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    if bytes.len() as u64 > max_bytes {
-        return Err(ImageError::TooLarge {
+        .take(want)
+        .read_to_end(bytes)
+        .map_err(|source| ImageError::Io {
             path: path.to_path_buf(),
-            size_mib: bytes.len() as f64 / 1048576.0,
-            max_mib: max_bytes as f64 / 1048576.0,
-        });
-    }
-    Ok(bytes)
+            source,
+        })?;
+    Ok(())
+}
+
+/// The image file of an ANALYZE-style pair (`x.hdr` → `x.img`, else `x.img.gz`).
+fn pair_image(path: &Path) -> Result<std::path::PathBuf, ImageError> {
+    let img = path.with_extension("img");
+    let gz = path.with_extension("img.gz");
+    [img, gz]
+        .into_iter()
+        .find(|p| p.is_file())
+        .ok_or_else(|| ImageError::NotFound {
+            path: path.with_extension("img"),
+        })
 }
 
 /// Reads a NIfTI-1 or NIfTI-2 file (`.nii`, `.nii.gz`, or an `.hdr`/`.img` pair for NIfTI-1).
-pub fn read_nifti(path: &Path, max_bytes: u64) -> Result<LoadedImage, ImageError> {
+/// The header is read first; the sizes it claims are checked against `ingest.max_file_mib`
+/// and `ingest.max_volume_mib` before any voxel is read, and no more bytes than it claims are
+/// read (or inflated).
+pub fn read_nifti(path: &Path, cfg: &IngestConfig) -> Result<LoadedImage, ImageError> {
     if !path.is_file() {
         return Err(ImageError::NotFound {
             path: path.to_path_buf(),
         });
     }
-    let bytes = read_bytes(path, max_bytes)?;
+    let mut reader = open_reader(path)?;
+    let mut bytes = Vec::new();
+    read_up_to(&mut reader, &mut bytes, 540, path)?;
     let sizeof_hdr = |le: bool| {
         bytes.get(0..4).map(|b| {
             let a = [b[0], b[1], b[2], b[3]];
@@ -99,22 +132,55 @@ pub fn read_nifti(path: &Path, max_bytes: u64) -> Result<LoadedImage, ImageError
             }
         })
     };
-    let (header, data) = match (sizeof_hdr(true), sizeof_hdr(false)) {
-        (Some(540), _) | (_, Some(540)) => {
-            let h = parse_nifti2(&bytes, path)?;
-            let data = decode_raw(&bytes, &h, path)?;
-            (h, data)
-        }
-        (Some(348), _) | (_, Some(348)) => read_nifti1(path)?,
+    let header = match (sizeof_hdr(true), sizeof_hdr(false)) {
+        (Some(540), _) | (_, Some(540)) => parse_nifti2(&bytes, path)?,
+        (Some(348), _) | (_, Some(348)) => parse_nifti1(&bytes, path)?,
         _ => {
             return Err(field_err(
                 path,
                 "sizeof_hdr",
-                format!("{:?}", sizeof_hdr(true)),
+                match sizeof_hdr(true) {
+                    Some(v) => v.to_string(),
+                    None => format!("absent ({} bytes in the file)", bytes.len()),
+                },
                 "348 (NIfTI-1) or 540 (NIfTI-2)",
             ));
         }
     };
+    let (voxels, voxel_bytes) = voxel_layout(&header, path)?;
+    let volume_bytes = voxels.saturating_mul(std::mem::size_of::<f32>() as u64);
+    let max_volume = (cfg.max_volume_mib * MIB) as u64;
+    if volume_bytes > max_volume {
+        return Err(ImageError::VolumeTooLarge {
+            path: path.to_path_buf(),
+            dims: format!("{:?}", &header.dim[1..4]),
+            size_mib: volume_bytes as f64 / MIB,
+            max_mib: cfg.max_volume_mib,
+        });
+    }
+    let needed = header
+        .vox_offset
+        .saturating_add(voxels.saturating_mul(voxel_bytes));
+    let max_file = (cfg.max_file_mib * MIB) as u64;
+    if needed > max_file {
+        return Err(ImageError::TooLarge {
+            path: path.to_path_buf(),
+            size_mib: needed as f64 / MIB,
+            max_mib: cfg.max_file_mib,
+        });
+    }
+    // the voxels: after the header in a single file, at vox_offset in the pair's image file
+    let data_path = match header.version {
+        1 if !header.single_file => {
+            let img = pair_image(path)?;
+            reader = open_reader(&img)?;
+            bytes.clear();
+            img
+        }
+        _ => path.to_path_buf(),
+    };
+    read_up_to(&mut reader, &mut bytes, needed, &data_path)?;
+    let data = decode_raw(&bytes, &header, voxels, voxel_bytes, &data_path)?;
     let (dims, spacing, origin, direction, warnings) = geometry(&header, path)?;
     let mut warnings = warnings;
     let extra: i64 = header.dim[4..=(header.dim[0].clamp(3, 7) as usize)]
@@ -150,19 +216,39 @@ pub fn read_nifti(path: &Path, max_bytes: u64) -> Result<LoadedImage, ImageError
     })
 }
 
-fn read_nifti1(path: &Path) -> Result<(Header, Vec<f32>), ImageError> {
-    let nerr = |e: nifti::NiftiError| ImageError::Nifti {
+/// The NIfTI-1 header (348 bytes, either byte order), parsed by the `nifti` crate.
+fn parse_nifti1(b: &[u8], path: &Path) -> Result<Header, ImageError> {
+    let head = b
+        .get(..348)
+        .ok_or_else(|| field_err(path, "header", format!("{} bytes", b.len()), "348 bytes"))?;
+    let h = nifti::NiftiHeader::from_reader(head).map_err(|e| ImageError::Nifti {
         path: path.to_path_buf(),
         message: e.to_string(),
+    })?;
+    let single_file = match &h.magic {
+        b"n+1\0" => true,
+        b"ni1\0" => false,
+        other => {
+            return Err(field_err(
+                path,
+                "magic",
+                format!("{:?}", String::from_utf8_lossy(other)),
+                "\"n+1\" (single file) or \"ni1\" (.hdr/.img pair)",
+            ));
+        }
     };
-    let obj = ReaderOptions::new().read_file(path).map_err(nerr)?;
-    let h = obj.header();
     let header = Header {
         version: 1,
+        single_file,
+        bitpix: Some(h.bitpix),
         dim: h.dim.map(i64::from),
         pixdim: h.pixdim.map(f64::from),
         datatype: h.datatype,
-        vox_offset: h.vox_offset.max(0.0) as u64,
+        vox_offset: if h.vox_offset.is_finite() {
+            h.vox_offset.max(0.0) as u64
+        } else {
+            u64::MAX
+        },
         scl_slope: h.scl_slope as f64,
         scl_inter: h.scl_inter as f64,
         qform_code: h.qform_code as i32,
@@ -174,21 +260,7 @@ fn read_nifti1(path: &Path) -> Result<(Header, Vec<f32>), ImageError> {
         little_endian: matches!(h.endianness, nifti::Endianness::Little),
     };
     check_dims(&header, path)?;
-    let array = obj.into_volume().into_ndarray::<f32>().map_err(nerr)?;
-    let mut array = array;
-    while array.ndim() > 3 {
-        let last = array.ndim() - 1;
-        array = array.index_axis_move(Axis(last), 0);
-    }
-    let array = array
-        .into_dimensionality::<Ix3>()
-        .map_err(|e| ImageError::Nifti {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-    // reversed axes iterate with i fastest, then j, then k: our layout
-    let data: Vec<f32> = array.t().iter().copied().collect();
-    Ok((header, data))
+    Ok(header)
 }
 
 fn check_dims(h: &Header, path: &Path) -> Result<(), ImageError> {
@@ -263,6 +335,8 @@ fn parse_nifti2(b: &[u8], path: &Path) -> Result<Header, ImageError> {
     }
     let h = Header {
         version: 2,
+        single_file: true,
+        bitpix: None,
         dim: std::array::from_fn(|k| i64_at(16 + 8 * k)),
         pixdim: std::array::from_fn(|k| f64_at(104 + 8 * k)),
         datatype: i16_at(12),
@@ -284,10 +358,9 @@ fn parse_nifti2(b: &[u8], path: &Path) -> Result<Header, ImageError> {
 /// Converts the leading bytes of one voxel to a value (little-endian flag).
 type Convert = fn([u8; 8], bool) -> f64;
 
-/// Decodes the first 3-D volume of raw voxel bytes (NIfTI-2 path), applying scl_slope/inter.
-fn decode_raw(b: &[u8], h: &Header, path: &Path) -> Result<Vec<f32>, ImageError> {
-    let n: usize = (1..=3).map(|k| h.dim[k].max(1) as usize).product();
-    let (size, conv): (usize, Convert) = match h.datatype {
+/// Bytes per voxel and their conversion, for the scalar datatypes read.
+fn voxel_type(datatype: i16) -> Option<(usize, Convert)> {
+    Some(match datatype {
         2 => (1, |a, _| a[0] as f64),
         256 => (1, |a, _| a[0] as i8 as f64),
         4 => (2, |a, le| {
@@ -337,18 +410,55 @@ fn decode_raw(b: &[u8], h: &Header, path: &Path) -> Result<Vec<f32>, ImageError>
                 f64::from_be_bytes(a)
             }
         }),
-        other => {
-            return Err(field_err(
-                path,
-                "datatype",
-                other.to_string(),
-                "a scalar integer or float type",
-            ));
-        }
+        _ => return None,
+    })
+}
+
+/// The voxels of the first 3-D volume and the bytes per voxel, checked against the datatype
+/// (and NIfTI-1's bitpix, which must agree with it) before anything is read.
+fn voxel_layout(h: &Header, path: &Path) -> Result<(u64, u64), ImageError> {
+    let Some((size, _)) = voxel_type(h.datatype) else {
+        return Err(field_err(
+            path,
+            "datatype",
+            h.datatype.to_string(),
+            "a scalar integer or float type (2, 4, 8, 16, 64, 256, 512, 768)",
+        ));
     };
-    let start = h.vox_offset as usize;
-    let end = start + n * size;
-    if end > b.len() {
+    if let Some(bitpix) = h.bitpix
+        && i64::from(bitpix) != 8 * size as i64
+    {
+        return Err(ImageError::NiftiField {
+            path: path.to_path_buf(),
+            field: "bitpix",
+            value: format!("{bitpix} with datatype {}", h.datatype),
+            expected: "8 x the datatype's bytes per voxel",
+        });
+    }
+    let voxels = (1..=3).fold(1u64, |n, k| n.saturating_mul(h.dim[k].max(1) as u64));
+    Ok((voxels, size as u64))
+}
+
+/// Decodes the first 3-D volume (`voxels` of `size` bytes at `vox_offset` in `b`), applying
+/// scl_slope/inter.
+fn decode_raw(
+    b: &[u8],
+    h: &Header,
+    voxels: u64,
+    size: u64,
+    path: &Path,
+) -> Result<Vec<f32>, ImageError> {
+    let Some((size, conv)) = voxel_type(h.datatype).filter(|(s, _)| *s as u64 == size) else {
+        return Err(field_err(
+            path,
+            "datatype",
+            h.datatype.to_string(),
+            "a scalar integer or float type",
+        ));
+    };
+    let start = h.vox_offset;
+    let end = start.saturating_add(voxels.saturating_mul(size as u64));
+    if end > b.len() as u64 {
         return Err(ImageError::Nifti {
             path: path.to_path_buf(),
             message: format!(
@@ -357,26 +467,40 @@ fn decode_raw(b: &[u8], h: &Header, path: &Path) -> Result<Vec<f32>, ImageError>
             ),
         });
     }
+    let (start, end) = (start as usize, end as usize);
+    // scl_slope 0 (or not a number) means no scaling, as nibabel and the standard read it
     let (slope, inter) = if h.scl_slope != 0.0 && h.scl_slope.is_finite() {
-        (
-            h.scl_slope,
-            if h.scl_inter.is_finite() {
-                h.scl_inter
-            } else {
-                0.0
-            },
-        )
+        if !h.scl_inter.is_finite() {
+            return Err(ImageError::NiftiField {
+                path: path.to_path_buf(),
+                field: "scl_inter",
+                value: h.scl_inter.to_string(),
+                expected: "a finite intercept when scl_slope scales the voxels",
+            });
+        }
+        (h.scl_slope, h.scl_inter)
     } else {
         (1.0, 0.0)
     };
-    Ok(b[start..end]
+    let data: Vec<f32> = b[start..end]
         .chunks_exact(size)
         .map(|c| {
             let mut a = [0u8; 8];
             a[..size].copy_from_slice(c);
             (conv(a, h.little_endian) * slope + inter) as f32
         })
-        .collect())
+        .collect();
+    let bad = data.iter().filter(|v| !v.is_finite()).count();
+    if bad > 0 {
+        return Err(ImageError::Nifti {
+            path: path.to_path_buf(),
+            message: format!(
+                "{bad} of {} voxels are not finite numbers (NaN or infinite intensities)",
+                data.len()
+            ),
+        });
+    }
+    Ok(data)
 }
 
 type Geometry = (
@@ -466,6 +590,14 @@ fn geometry(h: &Header, path: &Path) -> Result<Geometry, ImageError> {
     };
     let ras_to_lps = Matrix4::from_diagonal(&nalgebra::Vector4::new(-to_mm, -to_mm, to_mm, 1.0));
     affine = ras_to_lps * affine;
+    if affine.iter().any(|v| !v.is_finite()) {
+        return Err(field_err(
+            path,
+            "affine",
+            format!("{affine}"),
+            "finite numbers (origin and voxel axes)",
+        ));
+    }
     let m = affine.fixed_view::<3, 3>(0, 0).into_owned();
     let mut spacing = [0.0; 3];
     let mut direction = Matrix3::zeros();

@@ -212,7 +212,14 @@ fn scan_file(path: &Path, max_bytes: u64) -> Result<Scanned, ImageError> {
         .transfer_syntax()
         .trim_end_matches('\0')
         .to_string();
-    let header = read_image_header(&obj, path, rows as usize, columns as usize, transfer_syntax)?;
+    let header = read_image_header(
+        &obj,
+        path,
+        rows as usize,
+        columns as usize,
+        transfer_syntax,
+        size,
+    )?;
     Ok(Scanned::Image(Box::new(header)))
 }
 
@@ -222,6 +229,7 @@ fn read_image_header(
     rows: usize,
     columns: usize,
     transfer_syntax: String,
+    file_bytes: u64,
 ) -> Result<ImageFile, ImageError> {
     let series_uid =
         attr::string(obj, tags::SERIES_INSTANCE_UID).ok_or_else(|| ImageError::MissingTag {
@@ -262,6 +270,17 @@ fn read_image_header(
             tag: "NumberOfFrames (0028,0008)",
             value: n_frames.to_string(),
             expected: "at least 1".into(),
+        });
+    }
+    let least = least_frame_bytes(obj, path, rows, columns, &transfer_syntax)?;
+    if (n_frames as u64).saturating_mul(least) > file_bytes {
+        return Err(ImageError::BadValue {
+            path: path.to_path_buf(),
+            tag: "NumberOfFrames (0028,0008)",
+            value: n_frames.to_string(),
+            expected: format!(
+                "no more frames than the file's {file_bytes} bytes can hold ({least} bytes or more each)"
+            ),
         });
     }
     let root = frame_from(obj, None, None, path)?;
@@ -312,6 +331,37 @@ fn read_image_header(
         laterality,
         slice_spacing_hint,
     })
+}
+
+/// The fewest bytes one frame takes in the file: all its pixels when they are stored as they
+/// are (native transfer syntaxes), else the 8-byte header of the item holding its fragment.
+/// Checked against the file's size before anything is sized by NumberOfFrames.
+fn least_frame_bytes(
+    obj: &InMemDicomObject,
+    path: &Path,
+    rows: usize,
+    columns: usize,
+    transfer_syntax: &str,
+) -> Result<u64, ImageError> {
+    use dicom_encoding::TransferSyntaxIndex;
+    let native = dicom_transfer_syntax_registry::TransferSyntaxRegistry
+        .get(transfer_syntax)
+        .is_some_and(|ts| ts.is_codec_free());
+    if !native {
+        return Ok(8);
+    }
+    let allocated =
+        attr::int(obj, tags::BITS_ALLOCATED, "BitsAllocated (0028,0100)", path)?.unwrap_or(16);
+    if !(1..=64).contains(&allocated) {
+        return Err(ImageError::BadValue {
+            path: path.to_path_buf(),
+            tag: "BitsAllocated (0028,0100)",
+            value: allocated.to_string(),
+            expected: "1 to 64 bits".into(),
+        });
+    }
+    let bits = rows as u64 * columns as u64 * allocated as u64;
+    Ok(bits.div_ceil(8))
 }
 
 /// Geometry and rescale of one frame: from the per-frame functional group item, else the
