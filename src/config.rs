@@ -89,7 +89,7 @@ impl Config {
         match path {
             None => Config::default_config(),
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                let text = crate::io_util::read_text(p).map_err(|source| ConfigError::Read {
                     path: p.to_path_buf(),
                     source,
                 })?;

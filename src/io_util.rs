@@ -17,6 +17,40 @@ pub fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
     }
 }
 
+/// Largest text input read whole (landmarks, configuration, manifests, mappings): far above
+/// any real one, small enough that `/dev/zero` or a mistaken image path fails fast.
+pub const MAX_TEXT_BYTES: u64 = 16 << 20;
+
+/// Reads a UTF-8 text file of at most [`MAX_TEXT_BYTES`], without reading further: a larger
+/// (or endless) input is an `InvalidData` error saying so. A leading UTF-8 byte-order mark
+/// is dropped.
+pub fn read_text(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    fs::File::open(path)?
+        .take(MAX_TEXT_BYTES + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_TEXT_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "larger than {} MiB, too large for a text input of this kind",
+                MAX_TEXT_BYTES >> 20
+            ),
+        ));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+        )
+    })?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
+}
+
 /// The temporary sibling used while `path` is being written.
 fn temp_sibling(path: &Path) -> PathBuf {
     let name = path

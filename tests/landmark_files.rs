@@ -296,3 +296,45 @@ fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
     let json = read_landmarks(&dir.path().join("landmarks.json")).unwrap();
     assert_eq!(json.side, Some(Side::Left));
 }
+
+/// An endless input (`/dev/zero` given as the landmark file, or piped into the prompt) is
+/// refused after a bounded read instead of growing until the kernel kills the process; a
+/// UTF-8 byte-order mark (as some editors save) is not part of the first column's name.
+#[test]
+fn endless_inputs_are_refused_and_a_byte_order_mark_is_ignored() {
+    // /dev/zero under a landmark extension: a symlink to it
+    let zero = std::path::Path::new("/dev/zero");
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("zero.fcsv");
+    std::os::unix::fs::symlink(zero, &link).unwrap();
+    let err = read_landmarks(&link).unwrap_err().to_string();
+    assert!(err.contains("larger than 16 MiB"), "{err}");
+
+    let volume = Volume {
+        dims: [4, 4, 4],
+        spacing: [1.0; 3],
+        origin: Vector3::zeros(),
+        direction: nalgebra::Matrix3::identity(),
+        data: vec![0.0; 64],
+    };
+    let sampler = Sampler::new(&volume).unwrap();
+    let mut endless = std::io::BufReader::new(std::io::repeat(0));
+    let mut sink = Vec::new();
+    let err = prompt_landmarks(
+        PromptInput::Lines {
+            input: &mut endless,
+            echo: &mut sink,
+        },
+        &sampler,
+    )
+    .unwrap_err();
+    assert!(matches!(err, LandmarkError::PromptEnded));
+
+    let fcsv = "\u{feff}# Markups fiducial file version = 5.6\n# CoordinateSystem = LPS\n\
+        # columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n\
+        1,12.5,-30.25,101,0,0,0,1,1,1,0,Umbo,,\n\
+        2,14,-27,106.5,0,0,0,1,1,1,0,IMJ,,\n\
+        3,10.75,-26.5,103.25,0,0,0,1,1,1,0,ISJ,,\n";
+    let l = read_landmarks(&write(&dir, "bom.fcsv", fcsv)).unwrap();
+    assert_points(&l.landmarks, &expected());
+}

@@ -54,7 +54,7 @@ fn read_tagged(mesh_path: &Path, labels: Option<&Path>, m: &Mapping) -> Result<T
     };
     let n_tets = mesh.tets.tets.len();
     let tags: Vec<u16> = if let Some(labels) = labels {
-        let text = std::fs::read_to_string(labels).map_err(|source| AtlasError::Io {
+        let text = crate::io_util::read_text(labels).map_err(|source| AtlasError::Io {
             path: labels.to_path_buf(),
             source,
         })?;

@@ -86,7 +86,7 @@ pub struct SetMap {
 
 /// Reads and checks a mapping file.
 pub fn read_mapping(path: &Path) -> Result<Mapping, AtlasError> {
-    let text = std::fs::read_to_string(path).map_err(|source| AtlasError::Io {
+    let text = crate::io_util::read_text(path).map_err(|source| AtlasError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -176,7 +176,7 @@ impl AnatomySpec {
     /// Reads an anatomy file.
     pub fn load(path: &Path) -> Result<AnatomySpec, AnatomyError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| AnatomyError::Read {
+        let text = crate::io_util::read_text(path).map_err(|source| AnatomyError::Read {
             origin: origin.clone(),
             source,
         })?;

@@ -69,7 +69,7 @@ pub fn read_cohort(path: &Path) -> Result<Vec<Case>, CohortError> {
     let mut cases = if path.is_dir() {
         folder_cases(path).map_err(|e| read_err(e.to_string()))?
     } else {
-        let text = std::fs::read_to_string(path).map_err(|e| read_err(e.to_string()))?;
+        let text = crate::io_util::read_text(path).map_err(|e| read_err(e.to_string()))?;
         let rows = match path.extension().and_then(|e| e.to_str()) {
             Some("toml") => {
                 toml::from_str::<TomlManifest>(&text)

@@ -92,7 +92,7 @@ fn to_lps(p: Point3<f64>, frame: Frame) -> Point3<f64> {
 
 /// Reads a landmark file, choosing the format by extension.
 pub fn read_landmarks(path: &Path) -> Result<LandmarkFile, LandmarkError> {
-    let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
+    let text = crate::io_util::read_text(path).map_err(|source| LandmarkError::Io {
         path: path.to_path_buf(),
         source,
     })?;

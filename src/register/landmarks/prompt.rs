@@ -3,12 +3,15 @@
 //! out-of-image answer is explained and asked again. Works on a terminal (dialoguer) and line
 //! by line from a pipe, for scripts and tests.
 
-use std::io::{BufRead, Write};
+use std::io::{BufRead, Read, Write};
 
 use nalgebra::{Point3, Vector3};
 
 use super::{LandmarkError, LandmarkName, Landmarks};
 use crate::image::Sampler;
+
+/// Longest answer line read from a non-terminal input [bytes].
+const MAX_ANSWER_BYTES: u64 = 4096;
 
 /// Where the answers come from.
 pub enum PromptInput<'a> {
@@ -104,10 +107,12 @@ pub fn prompt_landmarks(
                 let _ = write!(echo, "{question}: ");
                 let _ = echo.flush();
                 let mut line = String::new();
-                let read = input
+                // an answer is one short line: never read further (`< /dev/zero` grew forever)
+                let read = (&mut **input)
+                    .take(MAX_ANSWER_BYTES)
                     .read_line(&mut line)
                     .map_err(|_| LandmarkError::PromptEnded)?;
-                if read == 0 {
+                if read == 0 || (read as u64 == MAX_ANSWER_BYTES && !line.ends_with('\n')) {
                     let _ = writeln!(echo);
                     return Err(LandmarkError::PromptEnded);
                 }
