@@ -578,3 +578,62 @@ fn nifti_variants_written_by_nibabel_read_as_nibabel_reads_them() {
         }
     }
 }
+
+/// A patient's name planted in every free-text field of two series in one folder (the
+/// several-series error listed each SeriesDescription, and one held the patient's name):
+/// nothing of it reaches `inspect`'s error, listing, output or JSON.
+#[test]
+fn free_text_of_the_dicom_never_reaches_a_message_or_output() {
+    const NAME: &str = "DOE^JANE PLANTED 1234567";
+    let dir = tempfile::tempdir().unwrap();
+    let vol = pattern([4, 4, 6], [0.25, 0.25, 0.5], Matrix3::identity());
+    let text_fields = [
+        (tags::PATIENT_NAME, VR::PN),
+        (tags::PATIENT_ID, VR::LO),
+        (tags::SERIES_DESCRIPTION, VR::LO),
+        (tags::STUDY_DESCRIPTION, VR::LO),
+        (tags::PROTOCOL_NAME, VR::LO),
+        (tags::INSTITUTION_NAME, VR::LO),
+        (tags::REFERRING_PHYSICIAN_NAME, VR::PN),
+        (tags::OPERATORS_NAME, VR::PN),
+        (tags::IMAGE_COMMENTS, VR::LT),
+        (tags::BODY_PART_EXAMINED, VR::CS),
+        (tags::STATION_NAME, VR::SH),
+    ];
+    for seed in ["phi-a", "phi-b"] {
+        let paths = write_series(&dir.path().join(seed), &vol, &identity(seed), &FIXED).unwrap();
+        for p in &paths {
+            edit_file(p, |obj| {
+                for (tag, vr) in text_fields {
+                    obj.put(DataElement::new(tag, vr, NAME));
+                }
+            });
+        }
+    }
+    let planted = ["DOE", "JANE", "PLANTED", "1234567"];
+    let clean = |what: &str, text: &str| {
+        let upper = text.to_ascii_uppercase();
+        for p in planted {
+            assert!(!upper.contains(p), "{what} holds {p:?}: {text}");
+        }
+    };
+    let out = otoatlas(&["inspect", dir.path().to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("2 image series"), "{stderr}");
+    clean("the several-series error", &stderr);
+    // pick one by its listed hash: the description is in no output either
+    let hash = stderr
+        .lines()
+        .find_map(|l| l.trim().split_whitespace().next().filter(|w| w.len() == 16))
+        .unwrap()
+        .to_string();
+    for extra in [None, Some("--json")] {
+        let mut args = vec!["inspect", dir.path().to_str().unwrap(), "--series", &hash];
+        args.extend(extra);
+        let out = otoatlas(&args);
+        assert!(out.status.success());
+        clean("inspect's output", &String::from_utf8_lossy(&out.stdout));
+        clean("inspect's log", &String::from_utf8_lossy(&out.stderr));
+    }
+}

@@ -160,21 +160,25 @@ pub fn read_dicom(
     })
 }
 
+/// One line per series: hash of its UID, SeriesNumber, modality and size; no free text
+/// (descriptions can hold patient information).
 fn series_listing(by_series: &BTreeMap<String, Vec<ImageFile>>) -> String {
     by_series
         .iter()
         .map(|(uid, files)| {
             let frames: usize = files.iter().map(|f| f.frames.len()).sum();
             let f = &files[0];
+            let number = f
+                .series_number
+                .map_or_else(|| "-".to_string(), |n| n.to_string());
             format!(
-                "  {}  {:<3} {:>4} slices  {}x{}x{}  {:?}",
+                "  {}  series number {number:<5} {:<3} {:>4} slices  {}x{}x{}",
                 &sha256_hex(uid.as_bytes())[..16],
                 f.modality,
                 frames,
                 f.columns,
                 f.rows,
                 frames,
-                f.description
             )
         })
         .collect::<Vec<_>>()

@@ -37,7 +37,9 @@ pub struct FrameHeader {
 pub struct ImageFile {
     pub path: PathBuf,
     pub series_uid: String,
-    pub description: String,
+    /// SeriesNumber: identifies a series in a listing without free text (a description can
+    /// hold a patient's name, so it is never read).
+    pub series_number: Option<i64>,
     pub modality: String,
     pub transfer_syntax: String,
     pub rows: usize,
@@ -321,7 +323,9 @@ fn read_image_header(
     Ok(ImageFile {
         path: path.to_path_buf(),
         series_uid,
-        description: attr::string(obj, tags::SERIES_DESCRIPTION).unwrap_or_default(),
+        series_number: attr::int(obj, tags::SERIES_NUMBER, "SeriesNumber (0020,0011)", path)
+            .ok()
+            .flatten(),
         modality: attr::string(obj, tags::MODALITY).unwrap_or_default(),
         transfer_syntax,
         rows,
