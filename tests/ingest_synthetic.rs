@@ -625,7 +625,7 @@ fn free_text_of_the_dicom_never_reaches_a_message_or_output() {
     // pick one by its listed hash: the description is in no output either
     let hash = stderr
         .lines()
-        .find_map(|l| l.trim().split_whitespace().next().filter(|w| w.len() == 16))
+        .find_map(|l| l.split_whitespace().next().filter(|w| w.len() == 16))
         .unwrap()
         .to_string();
     for extra in [None, Some("--json")] {
