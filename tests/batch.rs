@@ -58,6 +58,21 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
         let _ = std::fs::remove_file(cohort.join("case-002").join(name));
     }
     std::fs::write(cohort.join("case-002/landmarks.fcsv"), "not,a,markup\n").unwrap();
+    // what `run` accepts is a case: case-003's series in DICOM/ instead of dicom/; the rest is
+    // listed with its reason, never dropped silently (the earlier batch dropped all four)
+    std::fs::rename(cohort.join("case-003/dicom"), cohort.join("case-003/DICOM")).unwrap();
+    std::fs::remove_file(cohort.join("case-003/image.nii.gz")).unwrap();
+    std::fs::create_dir_all(cohort.join("empty")).unwrap();
+    std::fs::create_dir_all(cohort.join("misnamed")).unwrap();
+    std::fs::copy(
+        samples().join("case-001/image.nii.gz"),
+        cohort.join("misnamed/scan.nii.gz"),
+    )
+    .unwrap();
+    copy_dir(
+        &samples().join("case-001/segmentation"),
+        &cohort.join("group/nested-case/dicom"),
+    );
     let out = dir.path().join("out");
     let o = run(otoatlas()
         .args(["batch", "--jobs", "2", "--out"])
@@ -68,6 +83,23 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
     assert_eq!(summary["counts"]["ok"], 2);
     assert_eq!(summary["counts"]["failed"], 1);
     assert_eq!(summary["passed"], false);
+    let skipped: Vec<(String, String)> = summary["skipped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            (
+                s["name"].as_str().unwrap().to_string(),
+                s["reason"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    let names: Vec<&str> = skipped.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["empty", "group", "misnamed"], "{skipped:?}");
+    assert!(skipped[1].1.contains("nested cohort"), "{skipped:?}");
+    assert!(skipped[2].1.contains("scan.nii.gz"), "{skipped:?}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("3 entries of"), "{stdout}");
     let failed = &summary["cases"][1];
     assert_eq!(failed["id"], "case-002");
     assert_eq!(failed["outcome"], "failed");

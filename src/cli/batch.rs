@@ -84,7 +84,16 @@ fn absolute(path: &Path) -> Result<PathBuf, Error> {
 
 pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error> {
     let config = Config::load(config_path)?;
-    let cases = read_cohort(&args.cohort)?;
+    let cohort = read_cohort(&args.cohort)?;
+    for skip in &cohort.skipped {
+        crate::progress::log(&format!(
+            "not a case: {}/{}: {}",
+            args.cohort.display(),
+            skip.name,
+            skip.reason
+        ));
+    }
+    let cases = cohort.cases;
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -129,7 +138,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
         None => Shard::from_slurm(),
     };
     let ids: Vec<String> = cases.iter().map(|c| c.id.clone()).collect();
-    write_case_list(&args.out, &ids)?;
+    write_case_list(&args.out, &ids, &cohort.skipped)?;
     let selected = match shard {
         Some(s) => s.select(cases),
         None => cases,
@@ -160,6 +169,17 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
     );
     for s in &failed {
         let _ = writeln!(text, "  {}: {}", s.id, s.error.as_deref().unwrap_or("?"));
+    }
+    if !cohort.skipped.is_empty() {
+        let _ = writeln!(
+            text,
+            "{} entries of {} are not cases:",
+            cohort.skipped.len(),
+            args.cohort.display()
+        );
+        for skip in &cohort.skipped {
+            let _ = writeln!(text, "  {}: {}", skip.name, skip.reason);
+        }
     }
     let json = match shard {
         // a shard reports its own cases; `cohort-report` merges them all

@@ -23,6 +23,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::Case;
+use crate::image::nifti::is_nifti_path;
 
 /// The cohort could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -31,8 +32,10 @@ pub enum CohortError {
     Read { path: PathBuf, message: String },
     #[error("{path}: case {id:?} appears twice; case ids must be unique")]
     DuplicateId { path: PathBuf, id: String },
-    #[error("{path}: no cases (expected case folders with dicom/ or image.nii.gz, or a manifest)")]
-    Empty { path: PathBuf },
+    #[error(
+        "{path}: no cases (expected case folders with dicom/ or image.nii.gz, or a manifest){skipped}"
+    )]
+    Empty { path: PathBuf, skipped: String },
     #[error("{path}, case {id:?}: {field} {file} does not exist")]
     MissingFile {
         path: PathBuf,
@@ -59,15 +62,33 @@ struct TomlManifest {
     case: Vec<ManifestCase>,
 }
 
+/// A cohort as read: its cases, and what in a cohort folder was not taken as a case and why.
+#[derive(Debug)]
+pub struct Cohort {
+    pub cases: Vec<Case>,
+    pub skipped: Vec<Skipped>,
+}
+
+/// An entry of a cohort folder that is not a case.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Skipped {
+    /// The entry's name in the cohort folder.
+    pub name: String,
+    pub reason: String,
+}
+
 /// Reads the cohort at `path`: a folder whose sub-folders are cases, or a `.toml`/`.csv`
 /// manifest. Cases come sorted by id.
-pub fn read_cohort(path: &Path) -> Result<Vec<Case>, CohortError> {
+pub fn read_cohort(path: &Path) -> Result<Cohort, CohortError> {
     let read_err = |message: String| CohortError::Read {
         path: path.to_path_buf(),
         message,
     };
+    let mut skipped = Vec::new();
     let mut cases = if path.is_dir() {
-        folder_cases(path).map_err(|e| read_err(e.to_string()))?
+        let (cases, skips) = folder_cases(path).map_err(|e| read_err(e.to_string()))?;
+        skipped = skips;
+        cases
     } else {
         let text = crate::io_util::read_text(path).map_err(|e| read_err(e.to_string()))?;
         let rows = match path.extension().and_then(|e| e.to_str()) {
@@ -95,6 +116,10 @@ pub fn read_cohort(path: &Path) -> Result<Vec<Case>, CohortError> {
     if cases.is_empty() {
         return Err(CohortError::Empty {
             path: path.to_path_buf(),
+            skipped: skipped
+                .iter()
+                .map(|s| format!("\n  {}: {}", s.name, s.reason))
+                .collect(),
         });
     }
     cases.sort_by(|a, b| a.id.cmp(&b.id));
@@ -107,25 +132,71 @@ pub fn read_cohort(path: &Path) -> Result<Vec<Case>, CohortError> {
             });
         }
     }
-    Ok(cases)
+    Ok(Cohort { cases, skipped })
 }
 
-/// The sub-folders of `dir` that hold an image (`dicom/`, `image.nii.gz` or `image.nii`).
-fn folder_cases(dir: &Path) -> std::io::Result<Vec<Case>> {
+/// The sub-folders of `dir` that `run` accepts as a case (`dicom/`, `image.nii.gz` or
+/// `image.nii`, or DICOM files anywhere below), and every other entry with the reason it is
+/// not one. Hidden entries (a leading dot) are ignored.
+fn folder_cases(dir: &Path) -> std::io::Result<(Vec<Case>, Vec<Skipped>)> {
     let mut cases = Vec::new();
-    for entry in std::fs::read_dir(dir)? {
-        let path = entry?.path();
-        let has_image = ["dicom", "image.nii.gz", "image.nii"]
-            .iter()
-            .any(|n| path.join(n).exists());
-        if path.is_dir()
-            && has_image
-            && let Ok(case) = Case::open(&path)
-        {
-            cases.push(case);
+    let mut skipped = Vec::new();
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?
+        .map(|e| e.map(|e| e.path()))
+        .collect::<Result<_, _>>()?;
+    entries.sort();
+    for path in entries {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        if name.starts_with('.') {
+            continue;
+        }
+        match case_or_reason(&path) {
+            Ok(case) => cases.push(case),
+            Err(reason) => skipped.push(Skipped { name, reason }),
         }
     }
-    Ok(cases)
+    Ok((cases, skipped))
+}
+
+/// True if `path` holds a case's image the way `Case::open` finds it by name.
+fn has_named_image(path: &Path) -> bool {
+    ["dicom", "image.nii.gz", "image.nii"]
+        .iter()
+        .any(|n| path.join(n).exists())
+}
+
+fn case_or_reason(path: &Path) -> Result<Case, String> {
+    if !path.is_dir() {
+        return Err("not a folder".into());
+    }
+    if has_named_image(path) || crate::image::dicom::holds_dicom(path) {
+        return Case::open(path).map_err(|e| e.to_string());
+    }
+    let children: Vec<PathBuf> = std::fs::read_dir(path)
+        .map_err(|e| format!("cannot be read ({e})"))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    if children.is_empty() {
+        return Err("empty folder".into());
+    }
+    if children.iter().any(|c| c.is_dir() && has_named_image(c)) {
+        return Err("holds case folders (a nested cohort): give it to batch as a cohort of its own, or list its cases in a manifest".into());
+    }
+    let niftis: Vec<String> = children
+        .iter()
+        .filter(|c| is_nifti_path(c))
+        .filter_map(|c| c.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    if !niftis.is_empty() {
+        return Err(format!(
+            "holds {} but no image.nii.gz: rename the scan image.nii.gz, or list the case in a manifest",
+            niftis.join(", ")
+        ));
+    }
+    Err("no image: neither dicom/, image.nii.gz, image.nii nor any DICOM file".into())
 }
 
 fn manifest_cases(manifest: &Path, rows: Vec<ManifestCase>) -> Result<Vec<Case>, CohortError> {
@@ -228,12 +299,32 @@ mod tests {
             case_folder(dir.path(), id);
         }
         std::fs::create_dir_all(dir.path().join("notes")).unwrap();
-        let ids: Vec<String> = read_cohort(dir.path())
-            .unwrap()
-            .into_iter()
-            .map(|c| c.id)
-            .collect();
+        std::fs::write(dir.path().join("notes/todo.txt"), "x").unwrap();
+        std::fs::create_dir_all(dir.path().join("empty")).unwrap();
+        std::fs::create_dir_all(dir.path().join("other")).unwrap();
+        std::fs::write(dir.path().join("other/scan.nii.gz"), "x").unwrap();
+        case_folder(&dir.path().join("group"), "g0");
+        std::fs::write(dir.path().join("readme.txt"), "x").unwrap();
+        std::fs::write(dir.path().join(".hidden"), "x").unwrap();
+        let cohort = read_cohort(dir.path()).unwrap();
+        let ids: Vec<String> = cohort.cases.into_iter().map(|c| c.id).collect();
         assert_eq!(ids, ["c0", "c1", "c2"]);
+        let reasons: Vec<(&str, &str)> = cohort
+            .skipped
+            .iter()
+            .map(|s| (s.name.as_str(), s.reason.split(' ').next().unwrap_or("")))
+            .collect();
+        assert_eq!(
+            reasons,
+            [
+                ("empty", "empty"),
+                ("group", "holds"),
+                ("notes", "no"),
+                ("other", "holds"),
+                ("readme.txt", "not")
+            ]
+        );
+        assert!(cohort.skipped[3].reason.contains("scan.nii.gz"));
         let empty = tempfile::tempdir().unwrap();
         assert!(matches!(
             read_cohort(empty.path()),
@@ -251,7 +342,7 @@ mod tests {
             "id,image,landmarks,segmentation\np1,a/dicom,a/landmarks.json,\n",
         )
         .unwrap();
-        let cases = read_cohort(&csv).unwrap();
+        let cases = read_cohort(&csv).unwrap().cases;
         assert_eq!(cases[0].id, "p1");
         assert_eq!(cases[0].image, dir.path().join("a/dicom"));
         assert_eq!(cases[0].segmentation, None);
@@ -286,7 +377,7 @@ mod tests {
         for i in 0..7 {
             case_folder(dir.path(), &format!("c{i}"));
         }
-        let all = read_cohort(dir.path()).unwrap();
+        let all = read_cohort(dir.path()).unwrap().cases;
         let mut seen: Vec<String> = (0..3)
             .flat_map(|k| {
                 Shard { index: k, count: 3 }

@@ -8,6 +8,7 @@ use std::path::Path;
 use serde_json::{Value, json};
 
 use super::batch::{Outcome, case_dir, read_status};
+use super::cohort::Skipped;
 use crate::Error;
 use crate::io_util::write_atomic;
 use crate::report::{CohortEntry, cohort_report};
@@ -17,12 +18,14 @@ use crate::report::{CohortEntry, cohort_report};
 const CASE_LIST: &str = "cohort-cases.json";
 
 /// Records the cohort's case ids in `out` (the same file from every shard).
-pub fn write_case_list(out: &Path, ids: &[String]) -> Result<(), Error> {
-    let text = serde_json::to_string_pretty(&json!({ "cases": ids })).unwrap_or_default() + "\n";
+pub fn write_case_list(out: &Path, ids: &[String], skipped: &[Skipped]) -> Result<(), Error> {
+    let text = serde_json::to_string_pretty(&json!({ "cases": ids, "skipped": skipped }))
+        .unwrap_or_default()
+        + "\n";
     write_atomic(&out.join(CASE_LIST), text.as_bytes())
 }
 
-fn read_case_list(out: &Path) -> Result<Vec<String>, Error> {
+fn read_case_list(out: &Path) -> Result<(Vec<String>, Vec<Skipped>), Error> {
     let path = out.join(CASE_LIST);
     let text = std::fs::read_to_string(&path).map_err(|e| {
         Error::Usage(format!(
@@ -33,14 +36,16 @@ fn read_case_list(out: &Path) -> Result<Vec<String>, Error> {
     })?;
     let value: Value = serde_json::from_str(&text)
         .map_err(|e| Error::Usage(format!("{}: not a case list: {e}", path.display())))?;
-    Ok(value["cases"]
+    let ids = value["cases"]
         .as_array()
         .map(|a| {
             a.iter()
                 .filter_map(|v| v.as_str().map(String::from))
                 .collect()
         })
-        .unwrap_or_default())
+        .unwrap_or_default();
+    let skipped = serde_json::from_value(value["skipped"].clone()).unwrap_or_default();
+    Ok((ids, skipped))
 }
 
 fn read_metrics(path: &Path) -> Option<Value> {
@@ -51,7 +56,7 @@ fn read_metrics(path: &Path) -> Option<Value> {
 /// `out/cohort.html` and `out/cohort.csv`.
 /// `"passed"` is false when a case failed or has not run.
 pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
-    let ids = read_case_list(out)?;
+    let (ids, skipped) = read_case_list(out)?;
     let mut cases = Vec::new();
     let mut entries = Vec::new();
     let (mut ok, mut failed, mut missing) = (0usize, 0usize, 0usize);
@@ -100,6 +105,7 @@ pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
         "counts": { "cases": ids.len(), "ok": ok, "failed": failed, "missing": missing },
         "passed": failed == 0 && missing == 0,
         "cases": cases,
+        "skipped": skipped,
     });
     let report_path = out.join("cohort.html");
     let report = cohort_report(&entries).map_err(|source| Error::Report {

@@ -17,6 +17,18 @@ use crate::io_util::sha256_hex;
 use crate::progress::{self, Progress};
 pub use scan::{ImageFile, Rescale};
 
+/// True if any file under `dir` (recursively) carries the DICOM marker: what `run` accepts as
+/// a case folder without a `dicom/` inside.
+pub fn holds_dicom(dir: &Path) -> bool {
+    scan::list_files(dir)
+        .map(|files| {
+            files
+                .iter()
+                .any(|f| scan::has_dicom_marker(f).unwrap_or(false))
+        })
+        .unwrap_or(false)
+}
+
 /// Human name of a transfer syntax UID, from the registry dicom-rs was built with.
 pub fn transfer_syntax_name(uid: &str) -> String {
     use dicom_encoding::TransferSyntaxIndex;
