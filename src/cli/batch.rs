@@ -86,7 +86,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
     let config = Config::load(config_path)?;
     let cohort = read_cohort(&args.cohort)?;
     for skip in &cohort.skipped {
-        crate::progress::log(&format!(
+        crate::progress::log(format!(
             "not a case: {}/{}: {}",
             args.cohort.display(),
             skip.name,
