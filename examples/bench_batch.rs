@@ -25,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let case = generate_case(7000 + k, &options)?;
         write_case(&dir.path().join(format!("case-{k:03}")), &case)?;
     }
-    let cohort = read_cohort(dir.path())?;
+    let cohort = read_cohort(dir.path())?.cases;
     println!("{cases} phantom cases at 0.2 mm");
     let mut wall = Vec::new();
     for jobs in [1, 2] {
