@@ -190,6 +190,34 @@ fn the_wrong_side_puts_the_atlas_in_inside_out() {
     let (_, left) = register(&case, &dir.path().join("left"), &[]);
     assert_eq!(left["side"], "left");
     assert_eq!(left["side_source"], "DICOM laterality");
+    // a landmark file saying right on an image saying left is refused, naming both (it was
+    // registered mirrored, with exit 0 and no warning)
+    let mut picks: Value =
+        serde_json::from_str(&std::fs::read_to_string(case.join("landmarks.json")).unwrap())
+            .unwrap();
+    picks["side"] = "right".into();
+    let right_file = dir.path().join("right.json");
+    std::fs::write(&right_file, picks.to_string()).unwrap();
+    let file = right_file.to_str().unwrap();
+    let (refused, v) = register(&case, &dir.path().join("conflict"), &["--landmarks", file]);
+    assert_eq!(refused, 2, "{v}");
+    let msg = v["error"].as_str().unwrap();
+    assert!(
+        msg.contains("landmark file says the right ear") && msg.contains("laterality the left"),
+        "{msg}"
+    );
+    if code == 0 {
+        // --side overriding the image is run, with a warning naming the image's side
+        let warnings = right["landmark_warnings"].as_array().unwrap();
+        assert!(
+            warnings.iter().any(|w| w["kind"] == "side_overridden"
+                && w["message"]
+                    .as_str()
+                    .unwrap()
+                    .contains("DICOM laterality (left)")),
+            "{right}"
+        );
+    }
     if code == 0 {
         let masd = |m: &Value, s: &str| m["scores"][s]["rigid"]["masd"].as_f64().unwrap();
         for s in OSSICLES {

@@ -62,27 +62,44 @@ pub struct RunSummary {
     pub out: PathBuf,
 }
 
-/// Where the side of the ear came from.
+/// The side of the ear, where it came from, and a warning when `--side` overrides a
+/// disagreeing source. Without `--side`, a landmark file and a DICOM laterality that disagree
+/// are an error naming both (a mirrored atlas on the wrong ear registers badly, silently).
 fn side_of(
     opts: &RunOptions,
     file: &LandmarkFile,
     image: &LoadedImage,
-) -> Result<(Side, &'static str), Error> {
-    if let Some(s) = opts.side {
-        return Ok((s, "--side"));
+) -> Result<(Side, &'static str, Option<LandmarkWarning>), Error> {
+    let image_side = image.info.laterality.as_deref().and_then(Side::parse);
+    let sources = [
+        ("landmark file", file.side),
+        ("DICOM laterality", image_side),
+    ];
+    if let Some(chosen) = opts.side {
+        let against: Vec<String> = sources
+            .iter()
+            .filter_map(|(what, side)| side.filter(|s| *s != chosen).map(|s| (what, s)))
+            .map(|(what, s)| format!("the {what} ({})", s.as_str()))
+            .collect();
+        let warning =
+            (!against.is_empty()).then_some(LandmarkWarning::SideOverridden { chosen, against });
+        return Ok((chosen, "--side", warning));
     }
-    if let Some(s) = file.side {
-        return Ok((s, "landmark file"));
+    match (file.side, image_side) {
+        (Some(f), Some(i)) if f != i => Err(Error::Usage(format!(
+            "the landmark file says the {} ear, the image's DICOM laterality the {}: check              that they are of the same ear, and give --side to choose",
+            f.as_str(),
+            i.as_str()
+        ))),
+        (Some(f), _) => Ok((f, "landmark file", None)),
+        (None, Some(i)) => Ok((i, "DICOM laterality", None)),
+        (None, None) => Err(Error::Usage(
+            "the side of the ear is unknown: the image has no Laterality (0020,0060) or \
+             ImageLaterality (0020,0062) and the landmark file does not say; give --side left or \
+             --side right"
+                .into(),
+        )),
     }
-    if let Some(s) = image.info.laterality.as_deref().and_then(Side::parse) {
-        return Ok((s, "DICOM laterality"));
-    }
-    Err(Error::Usage(
-        "the side of the ear is unknown: the image has no Laterality (0020,0060) or \
-         ImageLaterality (0020,0062) and the landmark file does not say; give --side left or \
-         --side right"
-            .into(),
-    ))
 }
 
 fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
@@ -207,7 +224,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     } else {
         read_landmarks(&artefact_path(out, Stage::Landmarks))?
     };
-    let (side, side_source) = side_of(opts, &file, &loaded)?;
+    let (side, side_source, side_warning) = side_of(opts, &file, &loaded)?;
     let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
     let patient = file.landmarks;
     let image_check = ImageCheck {
@@ -217,7 +234,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         probe: &config.deform.probe,
         with_scale: config.rigid.with_scale,
     };
-    let landmark_warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
+    let mut landmark_warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
         .map_err(|e| {
             // name the file to correct (none for landmarks typed at the prompt)
             let path = match opts.from <= Stage::Landmarks {
@@ -232,6 +249,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
                 None => e,
             }
         })?;
+    landmark_warnings.extend(side_warning);
     for warning in &landmark_warnings {
         progress::log(format!("{}: landmark warning: {warning}", case.id));
     }

@@ -198,6 +198,12 @@ pub enum LandmarkWarning {
         /// The image's verdict, when there was an image.
         image: Option<SwapEvidence>,
     },
+    /// `--side` chose the ear against what the landmark file or the image says.
+    SideOverridden {
+        chosen: crate::ear::Side,
+        /// Each disagreeing source and its side, e.g. "DICOM laterality: right".
+        against: Vec<String>,
+    },
 }
 
 fn band_text([lo, hi]: [f64; 2]) -> String {
@@ -301,6 +307,12 @@ impl std::fmt::Display for LandmarkWarning {
                     ),
                 }
             }
+            LandmarkWarning::SideOverridden { chosen, against } => write!(
+                f,
+                "--side {} overrides {}: check that the image and the landmarks are of this ear",
+                chosen.as_str(),
+                against.join(" and ")
+            ),
         }
     }
 }
