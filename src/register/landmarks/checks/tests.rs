@@ -36,6 +36,7 @@ fn kinds(w: &[LandmarkWarning]) -> Vec<String> {
             LandmarkWarning::UnusualDistance { pair, .. } => format!("unusual {pair}"),
             LandmarkWarning::FlatTriangle { .. } => "flat".into(),
             LandmarkWarning::SuspectedSwap { a, b, .. } => format!("swap {a} {b}"),
+            LandmarkWarning::SideOverridden { .. } => "side".into(),
         })
         .collect()
 }
