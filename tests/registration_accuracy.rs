@@ -313,3 +313,38 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(again["rigid"], full["rigid"]);
     assert_eq!(again["scores"], full["scores"]);
 }
+
+/// A case folder and an output folder whose names are not UTF-8 (possible on Linux): the run
+/// finishes and writes the names lossily where JSON needs text (it panicked after writing
+/// stages/ and registered/).
+#[test]
+fn paths_that_are_not_utf8_run() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join(std::ffi::OsStr::from_bytes(b"case-\xff"));
+    copy_case(
+        &root().join("sample_cases/case-001"),
+        &case,
+        &["image.nii.gz", "landmarks.json"],
+    );
+    let out = dir.path().join(std::ffi::OsStr::from_bytes(b"out-\xfe"));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_otoatlas"))
+        .arg("run")
+        .arg(&case)
+        .arg("--out")
+        .arg(&out)
+        .args(["--quiet", "--side", "right", "--config"])
+        .arg(common::config_without_validation(dir.path()))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let metrics: Value =
+        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+    assert!(
+        metrics["image"]["image"]
+            .as_str()
+            .unwrap()
+            .contains("case-\u{fffd}"),
+        "{metrics}"
+    );
+}

@@ -130,7 +130,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
                 cases.len(),
                 out.display()
             ),
-            json: serde_json::json!({ "script": script_path, "tasks": tasks, "cases": cases.len() }),
+            json: serde_json::json!({ "script": script_path.display().to_string(), "tasks": tasks, "cases": cases.len() }),
         });
     }
     let shard = match &args.shard {

@@ -158,7 +158,8 @@ fn landmark_input(
 fn geometry_json(loaded: &LoadedImage, source: &Path) -> Value {
     let v = &loaded.volume;
     json!({
-        "image": source,
+        // a path that is not UTF-8 is written lossily (serialising it would fail)
+        "image": source.display().to_string(),
         "format": loaded.info.format,
         "dims": v.dims,
         "spacing": v.spacing,
@@ -392,7 +393,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     }
     write_json_file(
         &artefact_path(out, Stage::Export),
-        &json!({ "files": files }),
+        &json!({ "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>() }),
     )?;
     timings.push((Stage::Export, t.elapsed().as_secs_f64()));
 
