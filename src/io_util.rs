@@ -79,8 +79,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 }
 
 /// Writes the folder `dir` as a whole: `write` fills a temporary sibling, which then replaces
-/// `dir` (an older `dir` is moved aside, and restored if the rename fails). On any error the
+/// `dir` (exchanged with an older `dir` in one step where the system can). On any error the
 /// temporary is removed and an older `dir` is left as it was, so `dir` is complete or absent.
+/// Temporaries that killed runs left beside `dir` are removed first.
 pub fn write_dir_atomic<T>(
     dir: &Path,
     write: impl FnOnce(&Path) -> Result<T, Error>,
@@ -92,11 +93,7 @@ pub fn write_dir_atomic<T>(
     fs::create_dir_all(parent).map_err(io_err(parent))?;
     let tmp = temp_sibling(dir);
     let old = tmp.with_extension("old");
-    for stale in [&tmp, &old] {
-        if stale.exists() {
-            fs::remove_dir_all(stale).map_err(io_err(stale))?;
-        }
-    }
+    remove_stale_siblings(dir)?;
     let result = write(&tmp).and_then(|value| {
         swap_into_place(&tmp, dir, &old)?;
         Ok(value)
@@ -107,20 +104,67 @@ pub fn write_dir_atomic<T>(
     result
 }
 
-/// Renames `tmp` to `dir`; an existing `dir` is moved to `old` first and removed after.
+/// Renames `tmp` to `dir`. An existing `dir` is exchanged with `tmp` in one step where the
+/// system can (Linux `renameat2` with `RENAME_EXCHANGE`), so `dir` is never absent even if
+/// the process is killed; elsewhere it is moved to `old` first. The old folder is removed
+/// after.
 fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
-    let had_old = dir.exists();
-    if had_old {
-        fs::rename(dir, old).map_err(io_err(dir))?;
+    if !dir.exists() {
+        return fs::rename(tmp, dir).map_err(io_err(dir));
     }
-    if let Err(e) = fs::rename(tmp, dir) {
-        if had_old {
-            let _ = fs::rename(old, dir);
+    #[cfg(target_os = "linux")]
+    {
+        use rustix::fs::{CWD, RenameFlags, renameat_with};
+        if renameat_with(CWD, tmp, CWD, dir, RenameFlags::EXCHANGE).is_ok() {
+            // `tmp` now holds the old folder
+            return fs::remove_dir_all(tmp).map_err(io_err(tmp));
         }
+    }
+    fs::rename(dir, old).map_err(io_err(dir))?;
+    if let Err(e) = fs::rename(tmp, dir) {
+        let _ = fs::rename(old, dir);
         return Err(io_err(dir)(e));
     }
-    if had_old {
-        fs::remove_dir_all(old).map_err(io_err(old))?;
+    fs::remove_dir_all(old).map_err(io_err(old))
+}
+
+/// Removes the temporary siblings of `path` (`.NAME.PID.tmp`, `.NAME.PID.old`) that a killed
+/// process left: those of this process and of processes no longer running.
+fn remove_stale_siblings(path: &Path) -> Result<(), Error> {
+    let (Some(parent), Some(name)) = (path.parent(), path.file_name()) else {
+        return Ok(());
+    };
+    let parent = if parent.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        parent
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = fs::read_dir(parent) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(pid) = rest
+            .strip_suffix(".tmp")
+            .or_else(|| rest.strip_suffix(".old"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let alive = pid != std::process::id() && Path::new(&format!("/proc/{pid}")).exists();
+        if !alive {
+            let stale = entry.path();
+            let removed = if stale.is_dir() {
+                fs::remove_dir_all(&stale)
+            } else {
+                fs::remove_file(&stale)
+            };
+            removed.map_err(io_err(&stale))?;
+        }
     }
     Ok(())
 }
@@ -184,5 +228,13 @@ mod tests {
         assert_eq!(value.unwrap(), 7);
         assert_eq!(names(&dir), ["b"]);
         assert_eq!(names(root.path()), ["pkg"]);
+        // temporaries a killed run left (its process gone) are removed by the next write;
+        // those of a running process (pid 1) are not touched
+        for stale in [".pkg.99999999.tmp", ".pkg.99999999.old", ".pkg.1.tmp"] {
+            write_atomic(&root.path().join(stale).join("x"), b"0").unwrap();
+        }
+        write_dir_atomic(&dir, |tmp| write_atomic(&tmp.join("c"), b"3")).unwrap();
+        assert_eq!(names(&dir), ["c"]);
+        assert_eq!(names(root.path()), [".pkg.1.tmp", "pkg"]);
     }
 }

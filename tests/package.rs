@@ -686,3 +686,38 @@ fn no_patient_field_in_any_output_without_keep_phi() {
         "patient fields after a run without the flag: {found:?}"
     );
 }
+
+/// A re-run into an earlier run's folder that fails (here on its landmark file) leaves none
+/// of the earlier run's outputs beside its own: the old package, report and metrics would
+/// describe another registration. The stages' artefacts stay for `--from`.
+#[test]
+fn a_failed_rerun_leaves_no_earlier_package_or_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    copy_tree(base_run(), &out);
+    assert!(out.join("package/manifest.json").is_file());
+    let bad = dir.path().join("bad.fcsv");
+    std::fs::write(&bad, "not,a,markup\n").unwrap();
+    let case = common::root().join("sample_cases/case-001");
+    let o = common::otoatlas(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--landmarks",
+        bad.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    for gone in [
+        "package",
+        "package.log.json",
+        "registered",
+        "metrics.json",
+        "report.html",
+        "timings.json",
+    ] {
+        assert!(!out.join(gone).exists(), "{gone} left from the earlier run");
+    }
+    assert!(out.join("stages").is_dir());
+}

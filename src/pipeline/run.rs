@@ -20,7 +20,7 @@ use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{Landmarks, Side};
 use crate::export::MechanicsSummary;
-use crate::export::package::{PackageInput, write_package_logged};
+use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, LoadedImage, Sampler};
 use crate::io_util::write_atomic;
@@ -155,6 +155,31 @@ fn landmark_input(
     )))
 }
 
+/// The outputs a run writes after its stages (registered/, metrics, report, timings,
+/// mechanics, the package and its log), removed before anything else: a re-run that fails
+/// half-way never leaves an earlier run's package or report beside its own stages. The
+/// stages' artefacts stay (`--from` reads them).
+fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
+    for name in [
+        PACKAGE_DIR,
+        "package.log.json",
+        "registered",
+        "metrics.json",
+        "report.html",
+        "timings.json",
+        "mechanics.json",
+    ] {
+        let path = out.join(name);
+        let removed = match std::fs::symlink_metadata(&path) {
+            Ok(m) if m.is_dir() => std::fs::remove_dir_all(&path),
+            Ok(_) => std::fs::remove_file(&path),
+            Err(_) => continue,
+        };
+        removed.map_err(crate::io_util::io_err(&path))?;
+    }
+    Ok(())
+}
+
 fn geometry_json(loaded: &LoadedImage, source: &Path) -> Value {
     let v = &loaded.volume;
     json!({
@@ -183,6 +208,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
     let out = &opts.out;
     let mut timings: Vec<(Stage, f64)> = Vec::new();
     let started = Instant::now();
+    remove_previous_outputs(out)?;
 
     progress::case_stage(&case.id, Stage::Ingest.name());
     // ingest: always read (the later stages need the voxels); on resume, the image must be
@@ -421,13 +447,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         stage_times.push(("validate", t.elapsed().as_secs_f64()));
         Some(v)
     } else {
-        // an earlier run's verdict would not be this package's
-        if mechanics_path.exists() {
-            std::fs::remove_file(&mechanics_path).map_err(|source| Error::Io {
-                path: mechanics_path.clone(),
-                source,
-            })?;
-        }
+        // an earlier run's verdict was removed with its other outputs at the start
         None
     };
     let report = CaseReportInput {
