@@ -8,6 +8,7 @@ source scripts/lib.sh
 ensure_build_deps
 ensure_apt python3 python3
 ensure_apt dcmdjpeg dcmtk
+ensure_apt dciodvfy dicom3tools
 ensure_apt chromium chromium
 ensure_apt slurmctld slurm-wlm
 ensure_apt munged munge

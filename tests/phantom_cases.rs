@@ -389,3 +389,42 @@ fn assert_json_close(a: &serde_json::Value, b: &serde_json::Value, what: &str) {
         _ => assert_eq!(a, b, "{what}"),
     }
 }
+
+/// dciodvfy (dicom3tools, the reference checker of the standard's IODs) finds no error in a
+/// phantom slice of either side: the Type 2 attributes are present, Laterality is not written
+/// beside Image Laterality.
+#[test]
+fn dciodvfy_finds_no_error_in_phantom_slices() {
+    for side in [Side::Left, Side::Right] {
+        let dir = tempfile::tempdir().unwrap();
+        let case = generate_case(7, &options(side)).unwrap();
+        write_case(&dir.path().join("case"), &case).unwrap();
+        let mut slices: Vec<_> = fs::read_dir(dir.path().join("case/dicom"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        slices.sort();
+        let out = match std::process::Command::new("dciodvfy")
+            .arg(&slices[slices.len() / 2])
+            .output()
+        {
+            Ok(out) => out,
+            Err(_) if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") => {
+                panic!("dciodvfy is required: apt-get install dicom3tools")
+            }
+            Err(_) => {
+                eprintln!("skipped: dciodvfy (dicom3tools) not installed");
+                return;
+            }
+        };
+        // dciodvfy writes its findings to stderr
+        let report = String::from_utf8_lossy(&out.stderr).into_owned()
+            + &String::from_utf8_lossy(&out.stdout);
+        let errors: Vec<&str> = report.lines().filter(|l| l.starts_with("Error")).collect();
+        assert!(errors.is_empty(), "{side:?}: {errors:#?}");
+        assert!(
+            report.contains("CTImage"),
+            "dciodvfy did not check a CT image: {report}"
+        );
+    }
+}

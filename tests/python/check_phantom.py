@@ -46,7 +46,8 @@ def from_dicom(folder):
     first = slices[0]
     meta = dict(
         sop_class=str(first.SOPClassUID),
-        laterality=str(first.Laterality),
+        # Laterality (0020,0060) must be absent beside Image Laterality (Type 2C)
+        laterality=str(first.get("Laterality", "absent")),
         image_laterality=str(first.ImageLaterality),
         patient_name=str(first.PatientName),
         patient_id=str(first.PatientID),
@@ -127,7 +128,7 @@ def main():
     side = "L" if truth["side"] == "left" else "R"
     if meta["sop_class"] != "1.2.840.10008.5.1.4.1.1.2":
         fail(f"SOP class {meta['sop_class']} is not CT Image Storage")
-    if (meta["laterality"], meta["image_laterality"]) != (side, side):
+    if (meta["laterality"], meta["image_laterality"]) != ("absent", side):
         fail(f"laterality {meta['laterality']}/{meta['image_laterality']} != {side}")
     if not (meta["patient_name"] and meta["patient_id"] and len(meta["birth_date"]) == 8):
         fail(f"missing fake patient identity: {meta}")

@@ -128,6 +128,16 @@ pub fn write_series(
             DataElement::new(tags::SOP_CLASS_UID, VR::UI, uids::CT_IMAGE_STORAGE),
             DataElement::new(tags::SOP_INSTANCE_UID, VR::UI, sop_uid.as_str()),
             DataElement::new(tags::STUDY_DATE, VR::DA, "20260101"),
+            // Type 2 attributes of the CT Image IOD: present, empty when unknown (dciodvfy)
+            DataElement::new(tags::STUDY_TIME, VR::TM, "000000"),
+            DataElement::new(tags::ACCESSION_NUMBER, VR::SH, ""),
+            DataElement::new(tags::REFERRING_PHYSICIAN_NAME, VR::PN, ""),
+            DataElement::new(tags::PATIENT_SEX, VR::CS, ""),
+            DataElement::new(tags::KVP, VR::DS, ""),
+            DataElement::new(tags::PATIENT_POSITION, VR::CS, ""),
+            DataElement::new(tags::STUDY_ID, VR::SH, "1"),
+            DataElement::new(tags::ACQUISITION_NUMBER, VR::IS, ""),
+            DataElement::new(tags::POSITION_REFERENCE_INDICATOR, VR::LO, ""),
             DataElement::new(tags::MODALITY, VR::CS, "CT"),
             DataElement::new(tags::MANUFACTURER, VR::LO, "otoatlas phantom"),
             DataElement::new(
@@ -184,8 +194,8 @@ pub fn write_series(
             DataElement::new(tags::RESCALE_TYPE, VR::LO, "HU"),
             DataElement::new(tags::PIXEL_DATA, VR::OW, PrimitiveValue::U8(bytes.into())),
         ];
+        // Image Laterality only: Laterality (0020,0060) must be absent beside it (Type 2C)
         if let Some(side) = &identity.laterality {
-            elements.push(DataElement::new(tags::LATERALITY, VR::CS, side.as_str()));
             elements.push(DataElement::new(
                 tags::IMAGE_LATERALITY,
                 VR::CS,
