@@ -347,7 +347,7 @@ fn default_as_msh(dir: &Path, footplate_tag: u16) -> (Atlas, PathBuf, PathBuf, u
         mesh.triangle_regions.push(footplate_tag);
     }
     let msh = dir.join("default.msh");
-    write_msh(&msh, &mesh).unwrap();
+    write_msh(&msh, &mesh, &Default::default()).unwrap();
     let landmarks = dir.join("landmarks.json");
     std::fs::write(
         &landmarks,

@@ -116,7 +116,12 @@ fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
         &dir.join("landmarks.mrk.json"),
         write_mrk_json(&landmarks).as_bytes(),
     )?;
-    write_msh(&dir.join(SCENE_MESH), &registered.mesh)?;
+    let names = registered
+        .regions
+        .iter()
+        .map(|r| (r.label, r.name.clone()))
+        .collect();
+    write_msh(&dir.join(SCENE_MESH), &registered.mesh, &names)?;
     write_atomic(
         &dir.join(ATLAS_MANIFEST),
         manifest_string(&registered)?.as_bytes(),

@@ -6,6 +6,7 @@ usage: check_package.py PACKAGE_DIR
 
 Reads mesh.msh (Gmsh 2.2) and mesh.vtu and checks against manifest.json and atlas.json (read
 with the standard library): the point count; the tetra and triangle cell counts; the Gmsh
+physical names (one per atlas region, by its name);
 physical and geometrical tags of every cell equal its region label in mesh.vtu, and the set of
 labels per cell type equals atlas.json's volumetric / membrane regions; the points of both files
 agree; every tetrahedron has a positive volume. Prints "ok" or "FAIL: ..." and exits 1.
@@ -66,6 +67,12 @@ def main():
             fail(f"{kind}: gmsh:geometrical differs from mesh.vtu's region")
         if set(np.unique(physical[kind]).tolist()) != labels:
             fail(f"{kind}: physical tags {np.unique(physical[kind])}, atlas regions {labels}")
+    # $PhysicalNames: every region by its atlas name, with its label and dimension
+    for r in atlas["regions"]:
+        dim = 2 if r["label"] in membrane else 3
+        got = msh.field_data.get(r["name"])
+        if got is None or [int(got[0]), int(got[1])] != [r["label"], dim]:
+            fail(f"mesh.msh physical name {r['name']!r}: {got}, expected [{r['label']}, {dim}]")
     p = msh.points[cells(msh)["tetra"]]
     vol = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6
     if not np.all(vol > 0):

@@ -3,7 +3,7 @@
 //! The reader accepts any MSH 2.2 ASCII file, skips other element types (points, lines...)
 //! and takes the region from the first tag (0 when untagged).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -14,11 +14,29 @@ use super::{MeshIoError, VolumeMesh, read_text, write_bytes};
 const MSH_TRIANGLE: u32 = 2;
 const MSH_TETRA: u32 = 4;
 
-/// The MSH 2.2 document for `mesh`; `Err` names an inconsistency.
-pub fn msh_string(mesh: &VolumeMesh) -> Result<String, String> {
+/// The MSH 2.2 document for `mesh`; `names` (region label → name) become `$PhysicalNames`,
+/// one per label used, of dimension 3 for tetrahedra and 2 for triangles, so that Gmsh and
+/// meshio show the groups by name. `Err` names an inconsistency.
+pub fn msh_string(mesh: &VolumeMesh, names: &BTreeMap<u16, String>) -> Result<String, String> {
     mesh.check(&[])?;
     let m = &mesh.tets;
-    let mut s = String::from("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n");
+    let mut s = String::from("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n");
+    let used: BTreeSet<(u8, u16)> = m
+        .regions
+        .iter()
+        .map(|r| (3, *r))
+        .chain(mesh.triangle_regions.iter().map(|r| (2, *r)))
+        .filter(|(_, r)| names.contains_key(r))
+        .collect();
+    if !used.is_empty() {
+        let _ = writeln!(s, "$PhysicalNames\n{}", used.len());
+        for (dim, r) in &used {
+            let name = names[r].replace('"', "'");
+            let _ = writeln!(s, "{dim} {r} \"{name}\"");
+        }
+        s.push_str("$EndPhysicalNames\n");
+    }
+    s.push_str("$Nodes\n");
     let _ = writeln!(s, "{}", m.nodes.len());
     for (i, p) in m.nodes.iter().enumerate() {
         let _ = writeln!(s, "{} {:?} {:?} {:?}", i + 1, p.x, p.y, p.z);
@@ -50,9 +68,13 @@ pub fn msh_string(mesh: &VolumeMesh) -> Result<String, String> {
     Ok(s)
 }
 
-/// Writes `mesh` as Gmsh MSH 2.2 ASCII.
-pub fn write_msh(path: &Path, mesh: &VolumeMesh) -> Result<(), MeshIoError> {
-    let text = msh_string(mesh).map_err(|e| MeshIoError::parse(path, "mesh to write", e))?;
+/// Writes `mesh` as Gmsh MSH 2.2 ASCII, with `names` as its physical names.
+pub fn write_msh(
+    path: &Path,
+    mesh: &VolumeMesh,
+    names: &BTreeMap<u16, String>,
+) -> Result<(), MeshIoError> {
+    let text = msh_string(mesh, names).map_err(|e| MeshIoError::parse(path, "mesh to write", e))?;
     write_bytes(path, text.as_bytes())
 }
 
@@ -228,7 +250,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.msh");
         let mesh = sample();
-        write_msh(&path, &mesh).unwrap();
+        write_msh(&path, &mesh, &BTreeMap::new()).unwrap();
         assert_eq!(read_msh(&path).unwrap(), mesh);
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.starts_with("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n8\n"));
@@ -251,7 +273,7 @@ mod tests {
     fn bad_files_name_the_line() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.msh");
-        let good = msh_string(&sample()).unwrap();
+        let good = msh_string(&sample(), &BTreeMap::new()).unwrap();
         let cases = [
             (good.replacen("2.2 0 8", "4.1 0 8", 1), "line 2"),
             (good.replacen("2.2 0 8", "2.2 1 8", 1), "binary"),

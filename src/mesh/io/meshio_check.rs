@@ -70,7 +70,7 @@ fn meshio_reads_what_we_write() {
     let ply = dir.path().join("d.ply");
     write_vtu(&vtu_a, &mesh, &arrays, VtuEncoding::Ascii).unwrap();
     write_vtu(&vtu_b, &mesh, &arrays, VtuEncoding::Base64).unwrap();
-    write_msh(&msh, &mesh).unwrap();
+    write_msh(&msh, &mesh, &Default::default()).unwrap();
     let attrs = VertexAttributes {
         quality: Some((0..8).map(|i| i as f64 * 0.5).collect()),
         colors: Some(vec![[10, 20, 30]; 8]),

@@ -35,7 +35,7 @@ fn damaged_files_give_errors_not_panics() {
     write_obj(&dir.path().join("d.obj"), &surface).unwrap();
     write_vtu(&dir.path().join("e.vtu"), &volume, &[], VtuEncoding::Ascii).unwrap();
     write_vtu(&dir.path().join("f.vtu"), &volume, &[], VtuEncoding::Base64).unwrap();
-    write_msh(&dir.path().join("g.msh"), &volume).unwrap();
+    write_msh(&dir.path().join("g.msh"), &volume, &Default::default()).unwrap();
     let damaged = dir.path().join("damaged");
     let mut errors = 0;
     for (name, read) in files {
