@@ -119,6 +119,15 @@ fn mrk_json_json_and_csv() {
 }
 
 #[test]
+fn a_coordinate_that_rounds_to_zero_is_written_without_a_sign() {
+    let mut l = expected();
+    l.umbo = Point3::new(-0.00001, -2.5, 1e-12);
+    let text = write_fcsv(&l);
+    assert!(text.contains("\n1,0.0000,-2.5000,0.0000,"), "{text}");
+    assert!(!text.contains("-0.0000"), "{text}");
+}
+
+#[test]
 fn writers_round_trip_through_the_readers() {
     let dir = tempfile::tempdir().unwrap();
     let e = expected();

@@ -328,8 +328,13 @@ fn parse_csv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
     })
 }
 
+/// A coordinate to 0.1 µm; a value that rounds to zero is written `0.0000`, never `-0.0000`.
 fn fmt(v: f64) -> String {
-    format!("{v:.4}")
+    let text = format!("{v:.4}");
+    match text.strip_prefix('-') {
+        Some(rest) if rest.bytes().all(|b| b == b'0' || b == b'.') => rest.to_string(),
+        _ => text,
+    }
 }
 
 /// Slicer markups `.fcsv` text (LPS).
