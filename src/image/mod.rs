@@ -39,6 +39,22 @@ pub struct ImageInfo {
     pub notes: Vec<String>,
 }
 
+/// Refuses a volume of `dims` voxels whose 32-bit voxels would take more than
+/// `ingest.max_volume_mib`: checked from the header's sizes before anything is allocated.
+fn check_volume_budget(path: &Path, dims: [u64; 3], cfg: &IngestConfig) -> Result<(), ImageError> {
+    let voxels = dims.iter().fold(1u64, |n, d| n.saturating_mul(*d));
+    let size_mib = voxels.saturating_mul(std::mem::size_of::<f32>() as u64) as f64 / 1048576.0;
+    if size_mib > cfg.max_volume_mib {
+        return Err(ImageError::VolumeTooLarge {
+            path: path.to_path_buf(),
+            dims: format!("{dims:?}"),
+            size_mib,
+            max_mib: cfg.max_volume_mib,
+        });
+    }
+    Ok(())
+}
+
 /// A volume together with what ingest learned about its source.
 #[derive(Debug, Clone)]
 pub struct LoadedImage {

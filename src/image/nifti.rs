@@ -147,20 +147,11 @@ pub fn read_nifti(path: &Path, cfg: &IngestConfig) -> Result<LoadedImage, ImageE
             ));
         }
     };
-    let (voxels, voxel_bytes) = voxel_layout(&header, path)?;
-    let volume_bytes = voxels.saturating_mul(std::mem::size_of::<f32>() as u64);
-    let max_volume = (cfg.max_volume_mib * MIB) as u64;
-    if volume_bytes > max_volume {
-        return Err(ImageError::VolumeTooLarge {
-            path: path.to_path_buf(),
-            dims: format!("{:?}", &header.dim[1..4]),
-            size_mib: volume_bytes as f64 / MIB,
-            max_mib: cfg.max_volume_mib,
-        });
-    }
+    let layout = voxel_layout(&header, path)?;
+    super::check_volume_budget(path, layout.dims, cfg)?;
     let needed = header
         .vox_offset
-        .saturating_add(voxels.saturating_mul(voxel_bytes));
+        .saturating_add(layout.voxels().saturating_mul(layout.size as u64));
     let max_file = (cfg.max_file_mib * MIB) as u64;
     if needed > max_file {
         return Err(ImageError::TooLarge {
@@ -180,7 +171,7 @@ pub fn read_nifti(path: &Path, cfg: &IngestConfig) -> Result<LoadedImage, ImageE
         _ => path.to_path_buf(),
     };
     read_up_to(&mut reader, &mut bytes, needed, &data_path)?;
-    let data = decode_raw(&bytes, &header, voxels, voxel_bytes, &data_path)?;
+    let data = decode_raw(&bytes, &header, &layout, &data_path)?;
     let (dims, spacing, origin, direction, warnings) = geometry(&header, path)?;
     let mut warnings = warnings;
     let extra: i64 = header.dim[4..=(header.dim[0].clamp(3, 7) as usize)]
@@ -414,10 +405,24 @@ fn voxel_type(datatype: i16) -> Option<(usize, Convert)> {
     })
 }
 
-/// The voxels of the first 3-D volume and the bytes per voxel, checked against the datatype
-/// (and NIfTI-1's bitpix, which must agree with it) before anything is read.
-fn voxel_layout(h: &Header, path: &Path) -> Result<(u64, u64), ImageError> {
-    let Some((size, _)) = voxel_type(h.datatype) else {
+/// The first 3-D volume's sizes and how its voxels are stored.
+struct VoxelLayout {
+    dims: [u64; 3],
+    /// Bytes per voxel.
+    size: usize,
+    convert: Convert,
+}
+
+impl VoxelLayout {
+    fn voxels(&self) -> u64 {
+        self.dims.iter().fold(1u64, |n, d| n.saturating_mul(*d))
+    }
+}
+
+/// The layout of the first 3-D volume, checked against the datatype (and NIfTI-1's bitpix,
+/// which must agree with it) before anything is read.
+fn voxel_layout(h: &Header, path: &Path) -> Result<VoxelLayout, ImageError> {
+    let Some((size, convert)) = voxel_type(h.datatype) else {
         return Err(field_err(
             path,
             "datatype",
@@ -435,29 +440,24 @@ fn voxel_layout(h: &Header, path: &Path) -> Result<(u64, u64), ImageError> {
             expected: "8 x the datatype's bytes per voxel",
         });
     }
-    let voxels = (1..=3).fold(1u64, |n, k| n.saturating_mul(h.dim[k].max(1) as u64));
-    Ok((voxels, size as u64))
+    Ok(VoxelLayout {
+        dims: [1, 2, 3].map(|k| h.dim[k].max(1) as u64),
+        size,
+        convert,
+    })
 }
 
-/// Decodes the first 3-D volume (`voxels` of `size` bytes at `vox_offset` in `b`), applying
+/// Decodes the first 3-D volume (laid out as `layout`, at `vox_offset` in `b`), applying
 /// scl_slope/inter.
 fn decode_raw(
     b: &[u8],
     h: &Header,
-    voxels: u64,
-    size: u64,
+    layout: &VoxelLayout,
     path: &Path,
 ) -> Result<Vec<f32>, ImageError> {
-    let Some((size, conv)) = voxel_type(h.datatype).filter(|(s, _)| *s as u64 == size) else {
-        return Err(field_err(
-            path,
-            "datatype",
-            h.datatype.to_string(),
-            "a scalar integer or float type",
-        ));
-    };
+    let (size, conv) = (layout.size, layout.convert);
     let start = h.vox_offset;
-    let end = start.saturating_add(voxels.saturating_mul(size as u64));
+    let end = start.saturating_add(layout.voxels().saturating_mul(size as u64));
     if end > b.len() as u64 {
         return Err(ImageError::Nifti {
             path: path.to_path_buf(),

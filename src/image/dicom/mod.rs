@@ -115,19 +115,7 @@ pub fn read_dicom(
         }
     };
     let geometry = geometry::series_geometry(&files, cfg)?;
-    let voxels = geometry
-        .dims
-        .iter()
-        .fold(1u64, |n, d| n.saturating_mul(*d as u64));
-    let volume_mib = voxels.saturating_mul(4) as f64 / 1048576.0;
-    if volume_mib > cfg.max_volume_mib {
-        return Err(ImageError::VolumeTooLarge {
-            path: path.to_path_buf(),
-            dims: format!("{:?}", geometry.dims),
-            size_mib: volume_mib,
-            max_mib: cfg.max_volume_mib,
-        });
-    }
+    super::check_volume_budget(path, geometry.dims.map(|d| d as u64), cfg)?;
     let n_planes = geometry.dims[2] as u64;
     let mut data = vec![0f32; geometry.dims.iter().product()];
     let bar = Progress::new("decode", n_planes);
