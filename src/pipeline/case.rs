@@ -18,6 +18,9 @@ use crate::export::digest::{combined_sha256, file_digests};
 use crate::image::nifti::is_nifti_path;
 
 /// Landmark file names looked for in a case folder, in order of preference.
+/// The names a case folder's image goes by, in the order they are looked for.
+pub const IMAGE_NAMES: [&str; 3] = ["dicom", "image.nii.gz", "image.nii"];
+
 pub const LANDMARK_FILES: [&str; 4] = [
     "landmarks.fcsv",
     "landmarks.mrk.json",
@@ -73,7 +76,7 @@ impl Case {
                 segmentation: None,
             });
         }
-        let image = ["dicom", "image.nii.gz", "image.nii"]
+        let image = IMAGE_NAMES
             .iter()
             .map(|n| path.join(n))
             .find(|p| p.exists() && (p.is_dir() || is_nifti_path(p)))

@@ -23,6 +23,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::Case;
+use super::case::IMAGE_NAMES;
 use crate::image::nifti::is_nifti_path;
 
 /// The cohort could not be read.
@@ -163,9 +164,7 @@ fn folder_cases(dir: &Path) -> std::io::Result<(Vec<Case>, Vec<Skipped>)> {
 
 /// True if `path` holds a case's image the way `Case::open` finds it by name.
 fn has_named_image(path: &Path) -> bool {
-    ["dicom", "image.nii.gz", "image.nii"]
-        .iter()
-        .any(|n| path.join(n).exists())
+    IMAGE_NAMES.iter().any(|n| path.join(n).exists())
 }
 
 fn case_or_reason(path: &Path) -> Result<Case, String> {
