@@ -40,7 +40,7 @@ pub enum ConfigError {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
-    pub ingest: IngestConfig,
+    pub ingest: crate::image::IngestConfig,
     pub landmarks: crate::register::landmarks::CheckConfig,
     pub rigid: RigidConfig,
     pub articulate: crate::register::articulate::ArticulateConfig,
@@ -65,23 +65,6 @@ pub struct ValidateConfig {
 pub struct RigidConfig {
     /// Fit an isotropic scale as well (Umeyama) instead of a pure rigid motion (Kabsch).
     pub with_scale: bool,
-}
-
-/// Knobs of the ingest stage (reading DICOM series and NIfTI volumes).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IngestConfig {
-    /// Largest single input file accepted, in MiB (guards against malformed length fields).
-    pub max_file_mib: f64,
-    /// Largest image volume held in memory, in MiB of 32-bit voxels: checked from the header's
-    /// sizes before any voxel is read.
-    pub max_volume_mib: f64,
-    /// Largest relative deviation of one slice gap from the median gap before the series is
-    /// called non-uniform (a missing or extra slice), as a fraction of the median gap.
-    pub slice_gap_tolerance: f64,
-    /// Largest difference between two slices' ImageOrientationPatient direction cosines before
-    /// the series is called mixed-orientation (unitless).
-    pub orientation_tolerance: f64,
 }
 
 impl Config {

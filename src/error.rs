@@ -30,6 +30,8 @@ pub enum Error {
     #[error(transparent)]
     MeshIo(#[from] crate::mesh::io::MeshIoError),
     #[error(transparent)]
+    Structures(#[from] crate::meshdev::structures::StructuresError),
+    #[error(transparent)]
     Anatomy(#[from] crate::atlas::AnatomyError),
     #[error(transparent)]
     Atlas(#[from] crate::atlas::AtlasError),
@@ -53,6 +55,18 @@ pub enum Error {
     Usage(String),
 }
 
+impl From<crate::ear::LandmarkFileError> for Error {
+    fn from(e: crate::ear::LandmarkFileError) -> Error {
+        Error::Landmark(e.into())
+    }
+}
+
+impl From<crate::io_util::FileError> for Error {
+    fn from(crate::io_util::FileError { path, source }: crate::io_util::FileError) -> Error {
+        Error::Io { path, source }
+    }
+}
+
 impl Error {
     /// The exit status this error maps to.
     pub fn exit_status(&self) -> ExitStatus {
@@ -66,8 +80,15 @@ impl Error {
             | Error::Anatomy(_)
             | Error::Atlas(_)
             | Error::Usage(_) => ExitStatus::BadInput,
+            Error::Structures(e) => match e {
+                crate::meshdev::structures::StructuresError::Io { .. } => ExitStatus::CaseFailed,
+                _ => ExitStatus::BadInput,
+            },
             Error::Phantom(e) => match e {
-                crate::phantom::PhantomError::Anatomy { .. } => ExitStatus::CaseFailed,
+                crate::phantom::PhantomError::Anatomy { .. }
+                | crate::phantom::PhantomError::Write(_)
+                | crate::phantom::PhantomError::WriteImage(_)
+                | crate::phantom::PhantomError::WriteMesh(_) => ExitStatus::CaseFailed,
                 _ => ExitStatus::BadInput,
             },
             Error::Mechanics(e) => match e {

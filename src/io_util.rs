@@ -7,11 +7,19 @@ use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
-use crate::Error;
+/// A file-system failure and the path it happened on: the one error of this module, which
+/// each layer folds into its own.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {source}")]
+pub struct FileError {
+    pub path: PathBuf,
+    #[source]
+    pub source: std::io::Error,
+}
 
 /// Wraps an `std::io::Error` with the path it happened on.
-pub fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
-    move |source| Error::Io {
+pub fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FileError + '_ {
+    move |source| FileError {
         path: path.to_path_buf(),
         source,
     }
@@ -61,7 +69,7 @@ fn temp_sibling(path: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to `path` atomically: a temporary sibling is written, synced and renamed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         fs::create_dir_all(parent).map_err(io_err(parent))?;
     }
@@ -82,10 +90,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 /// `dir` (exchanged with an older `dir` in one step where the system can). On any error the
 /// temporary is removed and an older `dir` is left as it was, so `dir` is complete or absent.
 /// Temporaries that killed runs left beside `dir` are removed first.
-pub fn write_dir_atomic<T>(
+pub fn write_dir_atomic<T, E: From<FileError>>(
     dir: &Path,
-    write: impl FnOnce(&Path) -> Result<T, Error>,
-) -> Result<T, Error> {
+    write: impl FnOnce(&Path) -> Result<T, E>,
+) -> Result<T, E> {
     let parent = dir
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -108,7 +116,7 @@ pub fn write_dir_atomic<T>(
 /// system can (Linux `renameat2` with `RENAME_EXCHANGE`), so `dir` is never absent even if
 /// the process is killed; elsewhere it is moved to `old` first. The old folder is removed
 /// after.
-fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
+fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), FileError> {
     if !dir.exists() {
         return fs::rename(tmp, dir).map_err(io_err(dir));
     }
@@ -130,7 +138,7 @@ fn swap_into_place(tmp: &Path, dir: &Path, old: &Path) -> Result<(), Error> {
 
 /// Removes the temporary siblings of `path` (`.NAME.PID.tmp`, `.NAME.PID.old`) that a killed
 /// process left: those of this process and of processes no longer running.
-fn remove_stale_siblings(path: &Path) -> Result<(), Error> {
+fn remove_stale_siblings(path: &Path) -> Result<(), FileError> {
     let (Some(parent), Some(name)) = (path.parent(), path.file_name()) else {
         return Ok(());
     };
@@ -218,7 +226,7 @@ mod tests {
         // a failing writer leaves the old folder untouched and no temporary
         let failed = write_dir_atomic(&dir, |tmp| {
             write_atomic(&tmp.join("b"), b"2")?;
-            Err::<(), _>(Error::Usage("stop".into()))
+            Err::<(), _>(io_err(tmp)(std::io::Error::other("stop")))
         });
         assert!(failed.is_err());
         assert_eq!(names(&dir), ["a"]);

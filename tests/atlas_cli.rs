@@ -351,10 +351,7 @@ fn default_as_msh(dir: &Path, footplate_tag: u16) -> (Atlas, PathBuf, PathBuf, u
     let landmarks = dir.join("landmarks.json");
     std::fs::write(
         &landmarks,
-        otoatlas::register::landmarks::write_json(
-            &atlas.landmark_positions(atlas.nodes()),
-            Some(atlas.side),
-        ),
+        otoatlas::ear::write_json(&atlas.landmark_positions(atlas.nodes()), Some(atlas.side)),
     )
     .unwrap();
     (atlas, msh, landmarks, flipped)
@@ -579,11 +576,7 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
         .min_by(|a, b| (*a - p).norm().total_cmp(&(*b - p).norm()))
         .unwrap();
     let landmarks = tmp.path().join("lm.json");
-    std::fs::write(
-        &landmarks,
-        otoatlas::register::landmarks::write_json(&l, Some(atlas.side)),
-    )
-    .unwrap();
+    std::fs::write(&landmarks, otoatlas::ear::write_json(&l, Some(atlas.side))).unwrap();
     let (code, report) = json_in(
         tmp.path(),
         &[

@@ -12,11 +12,10 @@ use std::path::{Path, PathBuf};
 
 use otoatlas::atlas::{Atlas, load_atlas};
 use otoatlas::config::Config;
-use otoatlas::ear::Side;
+use otoatlas::ear::{Side, read_landmarks, write_json};
 use otoatlas::image::{LoadedImage, Sampler};
 use otoatlas::register::landmarks::{
     ImageCheck, LandmarkError, LandmarkWarning, check_landmarks, check_landmarks_on_image,
-    read_landmarks, write_json,
 };
 use otoatlas::register::{LandmarkName, Landmarks};
 

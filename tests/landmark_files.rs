@@ -7,11 +7,9 @@ use std::fs;
 use std::path::PathBuf;
 
 use nalgebra::{Point3, Vector3};
+use otoatlas::ear::{LandmarkFileError, read_landmarks, write_fcsv, write_json, write_mrk_json};
 use otoatlas::image::{Sampler, Volume};
-use otoatlas::register::landmarks::{
-    LandmarkError, PromptInput, prompt_landmarks, read_landmarks, write_fcsv, write_json,
-    write_mrk_json,
-};
+use otoatlas::register::landmarks::{LandmarkError, PromptInput, prompt_landmarks};
 use otoatlas::register::{Landmarks, Side};
 
 fn expected() -> Landmarks {
@@ -156,7 +154,7 @@ fn errors_name_file_line_and_expectation() {
     assert!(
         matches!(
             err,
-            LandmarkError::Missing {
+            LandmarkFileError::Missing {
                 name: "incudostapedial",
                 ..
             }
@@ -171,7 +169,7 @@ fn errors_name_file_line_and_expectation() {
     );
     assert!(matches!(
         read_landmarks(&dup).unwrap_err(),
-        LandmarkError::Duplicate {
+        LandmarkFileError::Duplicate {
             first: 1,
             second: 4,
             ..
@@ -192,7 +190,7 @@ fn errors_name_file_line_and_expectation() {
     );
     assert!(matches!(
         read_landmarks(&write(&dir, "x.txt", "")).unwrap_err(),
-        LandmarkError::UnknownFormat { .. }
+        LandmarkFileError::UnknownFormat { .. }
     ));
     let not_json = write(&dir, "n.json", "{ umbo: [1,2,3] ");
     assert!(

@@ -10,6 +10,7 @@ use std::path::Path;
 
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
+use otoatlas::ear::read_landmarks;
 use otoatlas::image;
 use otoatlas::mesh::TriMesh;
 use otoatlas::mesh::io::ply::read_ply;
@@ -17,7 +18,6 @@ use otoatlas::mesh::spatial::SignedSurface;
 use otoatlas::mesh::topology::surface_topology;
 use otoatlas::phantom::{PhantomCase, PhantomOptions, generate_case, write_case};
 use otoatlas::register::Side;
-use otoatlas::register::landmarks::read_landmarks;
 
 /// Coarse voxels keep debug-mode tests quick.
 const SPACING: f64 = 0.3;

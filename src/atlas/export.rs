@@ -6,13 +6,14 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
 
+use super::AtlasError;
 use super::model::{Atlas, Part};
 use crate::ear::Landmarks;
+use crate::ear::{write_fcsv, write_json};
 use crate::io_util::write_atomic;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, write_vtu};
 use crate::mesh::io::{CellArray, VolumeMesh};
-use crate::register::landmarks::{write_fcsv, write_json};
 
 /// The files an export wrote, for reports.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -26,7 +27,7 @@ pub fn export_atlas(
     atlas: &Atlas,
     nodes: &[Point3<f64>],
     out: &Path,
-) -> Result<Exported, crate::Error> {
+) -> Result<Exported, AtlasError> {
     let surfaces = out.join("surfaces");
     std::fs::create_dir_all(&surfaces).map_err(crate::io_util::io_err(&surfaces))?;
     let mut files = Vec::new();

@@ -57,7 +57,13 @@ pub enum AtlasError {
     #[error(transparent)]
     Build(#[from] super::build::BuildError),
     #[error(transparent)]
-    Landmarks(#[from] crate::register::landmarks::LandmarkError),
+    Landmarks(#[from] crate::ear::LandmarkFileError),
+}
+
+impl From<crate::io_util::FileError> for AtlasError {
+    fn from(crate::io_util::FileError { path, source }: crate::io_util::FileError) -> AtlasError {
+        AtlasError::Io { path, source }
+    }
 }
 
 impl AtlasError {
@@ -256,15 +262,8 @@ pub fn write_atlas(dir: &Path, atlas: &Atlas) -> Result<(), AtlasError> {
     })?;
     let vtu = vtu_string(&atlas.mesh, &[], VtuEncoding::Base64)
         .map_err(|e| AtlasError::invalid(&dir.join(MESH), "mesh", "a consistent mesh", e))?;
-    let to_atlas_err = |p: &Path| {
-        let p = p.to_path_buf();
-        move |e: crate::Error| AtlasError::Io {
-            path: p,
-            source: std::io::Error::other(e.to_string()),
-        }
-    };
-    write_atomic(&dir.join(MESH), vtu.as_bytes()).map_err(to_atlas_err(&dir.join(MESH)))?;
-    write_atomic(&path, manifest_string(atlas)?.as_bytes()).map_err(to_atlas_err(&path))
+    write_atomic(&dir.join(MESH), vtu.as_bytes())?;
+    Ok(write_atomic(&path, manifest_string(atlas)?.as_bytes())?)
 }
 
 /// Checks everything a simulation and the registration rely on.

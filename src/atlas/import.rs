@@ -16,13 +16,13 @@ use nalgebra::{Point3, Vector3};
 use super::format::{AtlasError, LANDMARK_TOLERANCE_MM, default_atlas, validate};
 use super::mapping::{Mapping, read_mapping, resolve_regions};
 use super::model::{Atlas, MeshPoint, TiedLandmarks};
+use crate::ear::read_landmarks;
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::io_util::sha256_hex;
 use crate::mesh::TetMesh;
 use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
 use crate::mesh::io::{CellArray, VolumeMesh};
-use crate::register::landmarks::read_landmarks;
 
 /// A mesh's cell tags (tetrahedra, then triangles).
 struct Tagged {

@@ -8,13 +8,11 @@ use serde_json::json;
 
 use super::Report;
 use crate::config::Config;
+use crate::ear::{Side, write_fcsv, write_json};
 use crate::image::{self, Sampler};
 use crate::io_util::write_atomic;
 use crate::pipeline::Case;
-use crate::register::Side;
-use crate::register::landmarks::{
-    PromptInput, check_landmarks, prompt_landmarks, write_fcsv, write_json,
-};
+use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
 use crate::{Error, progress};
 
 /// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel

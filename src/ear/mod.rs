@@ -1,8 +1,13 @@
-//! The vocabulary every stage shares about an ear: which side it is, and its three landmarks.
-//! The atlas carries them, the registration reads and fits them, the phantom writes them.
+//! The vocabulary every stage shares about an ear: which side it is, its three landmarks, and
+//! the files they are exchanged in. The atlas carries them, the registration reads and fits
+//! them, the phantom and the package write them.
 
+mod files;
 mod landmarks;
 mod side;
 
+pub use files::{
+    LandmarkFile, LandmarkFileError, read_landmarks, write_fcsv, write_json, write_mrk_json,
+};
 pub use landmarks::{LandmarkName, Landmarks};
 pub use side::Side;

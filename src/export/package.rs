@@ -31,10 +31,10 @@ use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manifest_string};
 use crate::config::Config;
+use crate::ear::write_mrk_json;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::{io_err, write_atomic, write_dir_atomic};
 use crate::mesh::io::gmsh::write_msh;
-use crate::register::landmarks::write_mrk_json;
 use crate::register::rigid::RigidFit;
 
 /// The package folder's name in a run's output folder.

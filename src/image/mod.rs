@@ -9,12 +9,28 @@ mod volume;
 
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use crate::config::IngestConfig;
 pub use error::ImageError;
 pub use sample::Sampler;
 pub use volume::Volume;
+
+/// Knobs of the ingest stage (reading DICOM series and NIfTI volumes).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IngestConfig {
+    /// Largest single input file accepted, in MiB (guards against malformed length fields).
+    pub max_file_mib: f64,
+    /// Largest image volume held in memory, in MiB of 32-bit voxels: checked from the header's
+    /// sizes before any voxel is read.
+    pub max_volume_mib: f64,
+    /// Largest relative deviation of one slice gap from the median gap before the series is
+    /// called non-uniform (a missing or extra slice), as a fraction of the median gap.
+    pub slice_gap_tolerance: f64,
+    /// Largest difference between two slices' ImageOrientationPatient direction cosines before
+    /// the series is called mixed-orientation (unitless).
+    pub orientation_tolerance: f64,
+}
 
 /// What ingest learned about the input besides the voxels (never a patient field or raw UID).
 #[derive(Debug, Clone, Serialize)]

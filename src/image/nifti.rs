@@ -15,7 +15,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use ndarray::ShapeBuilder;
 
-use crate::config::IngestConfig;
+use crate::image::IngestConfig;
 use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
 
 /// The header fields geometry and decoding need, from a NIfTI-1 or NIfTI-2 header.
@@ -647,11 +647,11 @@ fn ras_affine_of(geometry: &Volume) -> Matrix4<f64> {
 /// affine in both sform and qform (scanner-anatomical, mm). Compressed when the name ends in
 /// `.gz`. Written atomically: a temporary folder beside the target, then a rename. The gzip
 /// stream carries no timestamp, so equal inputs give equal bytes.
-pub fn write_nifti<T>(path: &Path, geometry: &Volume, data: &[T]) -> Result<(), crate::Error>
+pub fn write_nifti<T>(path: &Path, geometry: &Volume, data: &[T]) -> Result<(), ImageError>
 where
     T: nifti::DataElement + bytemuck::Pod + Clone,
 {
-    let io = |source: std::io::Error| crate::Error::Io {
+    let io = |source: std::io::Error| ImageError::Io {
         path: path.to_path_buf(),
         source,
     };

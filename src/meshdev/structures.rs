@@ -4,11 +4,10 @@
 //! side is the union of its parts).
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::Error;
-use crate::config::IngestConfig;
 use crate::image::nifti::is_nifti_path;
+use crate::image::{ImageError, IngestConfig};
 use crate::mesh::TriMesh;
 use crate::mesh::io::{obj, ply, stl, vtu};
 use crate::mesh::isosurface::label_surface;
@@ -22,6 +21,27 @@ pub const FUSED_NAMES: [(&str, &[&str]); 2] = [
     ("ossicles", &["malleus", "incus", "stapes"]),
     ("chain", &["malleus", "incus", "stapes"]),
 ];
+
+/// A set of structures could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum StructuresError {
+    #[error("{path}: no such file or folder")]
+    NotFound { path: PathBuf },
+    #[error("{path}: not a surface mesh; expected .ply, .stl, .obj or .vtu")]
+    NotASurface { path: PathBuf },
+    #[error("{path}: no surface mesh (.ply, .stl, .obj, .vtu) or label map (.nii, .nii.gz) found")]
+    NothingToCompare { path: PathBuf },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Mesh(#[from] crate::mesh::io::MeshIoError),
+    #[error(transparent)]
+    Image(#[from] ImageError),
+}
 
 /// A named surface.
 #[derive(Debug, Clone, PartialEq)]
@@ -65,7 +85,7 @@ fn mesh_extension(path: &Path) -> Option<String> {
 }
 
 /// Reads one surface mesh file (PLY, STL, OBJ, or the triangles of a VTU).
-pub fn read_surface(path: &Path) -> Result<TriMesh, Error> {
+pub fn read_surface(path: &Path) -> Result<TriMesh, StructuresError> {
     Ok(match mesh_extension(path).as_deref() {
         Some("ply") => ply::read_ply(path)?.0,
         Some("stl") => stl::read_stl(path)?,
@@ -78,10 +98,9 @@ pub fn read_surface(path: &Path) -> Result<TriMesh, Error> {
             }
         }
         _ => {
-            return Err(Error::Usage(format!(
-                "{}: not a surface mesh; expected .ply, .stl, .obj or .vtu",
-                path.display()
-            )));
+            return Err(StructuresError::NotASurface {
+                path: path.to_path_buf(),
+            });
         }
     })
 }
@@ -93,7 +112,7 @@ pub fn load_structures(
     path: &Path,
     labels: &[(u16, String)],
     ingest: &IngestConfig,
-) -> Result<Vec<Structure>, Error> {
+) -> Result<Vec<Structure>, StructuresError> {
     let stem = |p: &Path| {
         let name = p
             .file_name()
@@ -102,10 +121,9 @@ pub fn load_structures(
         name.split('.').next().unwrap_or_default().to_string()
     };
     if !path.exists() {
-        return Err(Error::Usage(format!(
-            "{}: no such file or folder",
-            path.display()
-        )));
+        return Err(StructuresError::NotFound {
+            path: path.to_path_buf(),
+        });
     }
     if path.is_file() {
         if is_nifti_path(path) {
@@ -118,7 +136,7 @@ pub fn load_structures(
         }]);
     }
     let mut entries: Vec<_> = std::fs::read_dir(path)
-        .map_err(|source| Error::Io {
+        .map_err(|source| StructuresError::Io {
             path: path.to_path_buf(),
             source,
         })?
@@ -143,10 +161,9 @@ pub fn load_structures(
     }
     match entries.iter().find(|p| is_nifti_path(p)) {
         Some(map) => load_structures(map, labels, ingest),
-        None => Err(Error::Usage(format!(
-            "{}: no surface mesh (.ply, .stl, .obj, .vtu) or label map (.nii, .nii.gz) found",
-            path.display()
-        ))),
+        None => Err(StructuresError::NothingToCompare {
+            path: path.to_path_buf(),
+        }),
     }
 }
 

@@ -20,14 +20,13 @@
 
 use std::path::{Path, PathBuf};
 
-use super::generator::PhantomCase;
-use crate::Error;
+use super::generator::{PhantomCase, PhantomError};
+use crate::ear::{write_fcsv, write_json, write_mrk_json};
 use crate::image::dicom::Rescale;
 use crate::image::dicom::write::{SeriesIdentity, SliceRescale, uid_from, write_series};
 use crate::image::nifti::write_nifti;
 use crate::io_util::{io_err, sha256_hex, write_atomic, write_dir_atomic};
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
-use crate::register::landmarks::{write_fcsv, write_json, write_mrk_json};
 
 /// Stored value = HU + 1024 (the usual CT rescale), so air is stored near 0.
 const RESCALE: Rescale = Rescale {
@@ -68,12 +67,12 @@ fn identity(case: &PhantomCase) -> SeriesIdentity {
 }
 
 /// Writes `case` as the folder `dir` (replacing an older one) and returns its path.
-pub fn write_case(dir: &Path, case: &PhantomCase) -> Result<PathBuf, Error> {
+pub fn write_case(dir: &Path, case: &PhantomCase) -> Result<PathBuf, PhantomError> {
     write_dir_atomic(dir, |tmp| write_parts(tmp, case))?;
     Ok(dir.to_path_buf())
 }
 
-fn write_parts(dir: &Path, case: &PhantomCase) -> Result<(), Error> {
+fn write_parts(dir: &Path, case: &PhantomCase) -> Result<(), PhantomError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     // the voxels as the DICOM stores them: whole HU
     let mut image = case.image.clone();
@@ -110,9 +109,11 @@ fn write_parts(dir: &Path, case: &PhantomCase) -> Result<(), Error> {
         )?;
     }
     write_nifti(&seg.join("labels.nii.gz"), &image, &case.labels)?;
-    let truth = serde_json::to_string_pretty(&case.truth).map_err(|e| Error::Io {
-        path: dir.join("truth.json"),
-        source: std::io::Error::other(e.to_string()),
+    let truth = serde_json::to_string_pretty(&case.truth).map_err(|e| {
+        crate::io_util::io_err(&dir.join("truth.json"))(std::io::Error::other(e.to_string()))
     })?;
-    write_atomic(&dir.join("truth.json"), format!("{truth}\n").as_bytes())
+    Ok(write_atomic(
+        &dir.join("truth.json"),
+        format!("{truth}\n").as_bytes(),
+    )?)
 }

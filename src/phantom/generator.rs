@@ -73,6 +73,13 @@ pub enum PhantomError {
         #[source]
         source: AnatomyError,
     },
+    /// A case could not be written (a file, its image or a mesh).
+    #[error(transparent)]
+    Write(#[from] crate::io_util::FileError),
+    #[error(transparent)]
+    WriteImage(#[from] crate::image::ImageError),
+    #[error(transparent)]
+    WriteMesh(#[from] crate::mesh::io::MeshIoError),
 }
 
 impl PhantomOptions {

@@ -23,10 +23,10 @@ use super::variability::Ossicle;
 use crate::atlas::sdf::Disc;
 use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
+use crate::ear::read_landmarks;
 use crate::mesh::TriMesh;
 use crate::mesh::spatial::{Bvh, SignedSurface};
 use crate::meshdev::structures::{merge, read_surface};
-use crate::register::landmarks::read_landmarks;
 use crate::register::rigid::{SimilarityTransform, fit_similarity};
 
 /// Surface file names per part, tried in this order (PLY, STL, OBJ).

@@ -166,7 +166,10 @@ fn run_one(
 
 fn write_status(out: &Path, status: &CaseStatus) -> Result<(), Error> {
     let text = serde_json::to_string_pretty(status).unwrap_or_default() + "\n";
-    write_atomic(&status_path(out, &status.id), text.as_bytes())
+    Ok(write_atomic(
+        &status_path(out, &status.id),
+        text.as_bytes(),
+    )?)
 }
 
 /// Reads the status of case `id`, if it has one.

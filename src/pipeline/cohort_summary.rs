@@ -22,7 +22,7 @@ pub fn write_case_list(out: &Path, ids: &[String], skipped: &[Skipped]) -> Resul
     let text = serde_json::to_string_pretty(&json!({ "cases": ids, "skipped": skipped }))
         .unwrap_or_default()
         + "\n";
-    write_atomic(&out.join(CASE_LIST), text.as_bytes())
+    Ok(write_atomic(&out.join(CASE_LIST), text.as_bytes())?)
 }
 
 fn read_case_list(out: &Path) -> Result<(Vec<String>, Vec<Skipped>), Error> {

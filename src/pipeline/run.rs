@@ -18,6 +18,7 @@ use super::stage::Stage;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
+use crate::ear::{LandmarkFile, read_landmarks, write_json};
 use crate::ear::{Landmarks, Side};
 use crate::export::MechanicsSummary;
 use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
@@ -30,8 +31,8 @@ use crate::pipeline::mechanics::validate_registered;
 use crate::register::atlas_fit::{deform_atlas, fit_landmarks, place};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
-    ImageCheck, LandmarkError, LandmarkFile, LandmarkWarning, PromptInput,
-    check_landmarks_on_image, prompt_landmarks, read_landmarks, write_json,
+    ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_landmarks_on_image,
+    prompt_landmarks,
 };
 use crate::register::rigid::RigidFit;
 use crate::report::{Accuracy, CaseReportInput, case_report_html};
@@ -108,7 +109,7 @@ fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
 
 fn write_json_file(path: &Path, value: &Value) -> Result<(), Error> {
     let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
-    write_atomic(path, text.as_bytes())
+    Ok(write_atomic(path, text.as_bytes())?)
 }
 
 fn read_artefact(out: &Path, stage: Stage, from: Stage) -> Result<Value, Error> {

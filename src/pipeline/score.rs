@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::Error;
 use crate::atlas::{Atlas, Part};
-use crate::config::IngestConfig;
+use crate::image::IngestConfig;
 use crate::mesh::TriMesh;
 use crate::meshdev::sampling::DEFAULT_SEED;
 use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures};

@@ -8,8 +8,8 @@ use std::path::Path;
 use nalgebra::{Matrix3, Vector3};
 
 use super::scan::ImageFile;
-use crate::config::IngestConfig;
 use crate::image::ImageError;
+use crate::image::IngestConfig;
 
 /// The geometry of a series and the order of its frames along k.
 #[derive(Debug, Clone)]

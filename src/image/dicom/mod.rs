@@ -11,7 +11,7 @@ pub mod write;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::config::IngestConfig;
+use crate::image::IngestConfig;
 use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
 use crate::io_util::sha256_hex;
 use crate::progress::{self, Progress};

@@ -11,7 +11,7 @@ use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
 use rayon::prelude::*;
 
 use super::Rescale;
-use crate::Error;
+use crate::image::ImageError;
 use crate::image::Volume;
 use crate::io_util::sha256_hex;
 
@@ -67,8 +67,8 @@ fn ds(values: &[f64]) -> PrimitiveValue {
     PrimitiveValue::Strs(values.iter().map(|v| format_ds(*v)).collect())
 }
 
-fn write_err(path: &Path, message: String) -> Error {
-    Error::Io {
+fn write_err(path: &Path, message: String) -> ImageError {
+    ImageError::Io {
         path: path.to_path_buf(),
         source: std::io::Error::other(message),
     }
@@ -80,8 +80,8 @@ pub fn write_series(
     volume: &Volume,
     identity: &SeriesIdentity,
     rescale: &SliceRescale,
-) -> Result<Vec<PathBuf>, Error> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+) -> Result<Vec<PathBuf>, ImageError> {
+    std::fs::create_dir_all(dir).map_err(|source| ImageError::Io {
         path: dir.to_path_buf(),
         source,
     })?;

@@ -52,13 +52,8 @@ pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshIoError> {
 
 /// Writes a whole file atomically.
 pub(crate) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), MeshIoError> {
-    crate::io_util::write_atomic(path, bytes).map_err(|e| match e {
-        crate::Error::Io { path, source } => MeshIoError::Io { path, source },
-        other => MeshIoError::Io {
-            path: path.to_path_buf(),
-            source: std::io::Error::other(other.to_string()),
-        },
-    })
+    crate::io_util::write_atomic(path, bytes)
+        .map_err(|crate::io_util::FileError { path, source }| MeshIoError::Io { path, source })
 }
 
 /// Reads a text file (UTF-8, lossy for stray bytes in comments).

@@ -1,61 +1,26 @@
-//! The three landmarks of the method (umbo, incudomalleolar joint, incudostapedial joint) in
-//! LPS millimetres: names and their usual aliases, file formats, plausibility checks (with the
-//! image's word on a suspected label swap), and the interactive prompt.
+//! Landmark checks and input for the registration: plausibility checks of the three landmarks
+//! (with the image's word on a suspected label swap) and the interactive prompt. Their names
+//! and file formats are the ear's vocabulary ([`crate::ear`]).
 
 mod checks;
-mod formats;
 mod image_check;
 mod prompt;
 
 use std::path::PathBuf;
 
 pub use checks::{Band, CheckConfig, LandmarkWarning, check_landmarks, check_landmarks_on_image};
-pub use formats::{read_landmarks, write_fcsv, write_json, write_mrk_json};
 pub use image_check::{BorderFit, ImageCheck, SwapEvidence};
 
 pub use prompt::{PromptInput, prompt_landmarks};
 
-use crate::ear::Side;
+use crate::ear::LandmarkFileError;
 pub use crate::ear::{LandmarkName, Landmarks};
 
-/// Landmarks read from a file, with what the file said besides the points.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LandmarkFile {
-    pub landmarks: Landmarks,
-    /// The side of the ear, if the file says it.
-    pub side: Option<Side>,
-    /// Notes for the user (e.g. a coordinate system assumed).
-    pub notes: Vec<String>,
-}
-
-/// Errors reading, checking or prompting for landmarks.
+/// Errors checking or prompting for landmarks (or reading their file).
 #[derive(Debug, thiserror::Error)]
 pub enum LandmarkError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}: unknown landmark file type; expected .fcsv, .mrk.json, .json or .csv")]
-    UnknownFormat { path: PathBuf },
-    #[error("{path}:{line}: {message}")]
-    Parse {
-        path: PathBuf,
-        line: usize,
-        message: String,
-    },
-    #[error(
-        "{path}: landmark {name} is missing; expected umbo, incudomalleolar (IMJ) and incudostapedial (ISJ)"
-    )]
-    Missing { path: PathBuf, name: &'static str },
-    #[error("{path}: landmark {name} is given twice (lines {first} and {second})")]
-    Duplicate {
-        path: PathBuf,
-        name: &'static str,
-        first: usize,
-        second: usize,
-    },
+    #[error(transparent)]
+    File(#[from] LandmarkFileError),
     #[error(
         "landmark {name} at ({x:.2}, {y:.2}, {z:.2}) mm LPS lies outside the image (voxel index {i:.1}, {j:.1}, {k:.1}; dims {dims:?})"
     )]

@@ -5,13 +5,52 @@
 //! callers can write it atomically.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
 use serde_json::{Value, json};
 
-use super::{LandmarkError, LandmarkFile, LandmarkName, Landmarks};
-use crate::register::Side;
+use super::{LandmarkName, Landmarks, Side};
+
+/// Landmarks read from a file, with what the file said besides the points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LandmarkFile {
+    pub landmarks: Landmarks,
+    /// The side of the ear, if the file says it.
+    pub side: Option<Side>,
+    /// Notes for the user (e.g. a coordinate system assumed).
+    pub notes: Vec<String>,
+}
+
+/// A landmark file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum LandmarkFileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: unknown landmark file type; expected .fcsv, .mrk.json, .json or .csv")]
+    UnknownFormat { path: PathBuf },
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error(
+        "{path}: landmark {name} is missing; expected umbo, incudomalleolar (IMJ) and incudostapedial (ISJ)"
+    )]
+    Missing { path: PathBuf, name: &'static str },
+    #[error("{path}: landmark {name} is given twice (lines {first} and {second})")]
+    Duplicate {
+        path: PathBuf,
+        name: &'static str,
+        first: usize,
+        second: usize,
+    },
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Frame {
@@ -19,8 +58,8 @@ enum Frame {
     Ras,
 }
 
-fn parse_err(path: &Path, line: usize, message: impl Into<String>) -> LandmarkError {
-    LandmarkError::Parse {
+fn parse_err(path: &Path, line: usize, message: impl Into<String>) -> LandmarkFileError {
+    LandmarkFileError::Parse {
         path: path.to_path_buf(),
         line,
         message: message.into(),
@@ -43,7 +82,7 @@ impl<'a> Collected<'a> {
 
     /// Adds a point if its label names a landmark; other labels are ignored (files often hold
     /// more markups than ours).
-    fn add(&mut self, label: &str, p: Point3<f64>, line: usize) -> Result<(), LandmarkError> {
+    fn add(&mut self, label: &str, p: Point3<f64>, line: usize) -> Result<(), LandmarkFileError> {
         let Some(name) = LandmarkName::parse(label) else {
             return Ok(());
         };
@@ -55,7 +94,7 @@ impl<'a> Collected<'a> {
             ));
         }
         if let Some((_, first)) = self.points.insert(name, (p, line)) {
-            return Err(LandmarkError::Duplicate {
+            return Err(LandmarkFileError::Duplicate {
                 path: self.path.to_path_buf(),
                 name: name.key(),
                 first,
@@ -65,12 +104,12 @@ impl<'a> Collected<'a> {
         Ok(())
     }
 
-    fn finish(self, frame: Frame) -> Result<Landmarks, LandmarkError> {
+    fn finish(self, frame: Frame) -> Result<Landmarks, LandmarkFileError> {
         let get = |name: LandmarkName| {
             self.points
                 .get(&name)
                 .map(|(p, _)| to_lps(*p, frame))
-                .ok_or(LandmarkError::Missing {
+                .ok_or(LandmarkFileError::Missing {
                     path: self.path.to_path_buf(),
                     name: name.key(),
                 })
@@ -91,8 +130,8 @@ fn to_lps(p: Point3<f64>, frame: Frame) -> Point3<f64> {
 }
 
 /// Reads a landmark file, choosing the format by extension.
-pub fn read_landmarks(path: &Path) -> Result<LandmarkFile, LandmarkError> {
-    let text = crate::io_util::read_text(path).map_err(|source| LandmarkError::Io {
+pub fn read_landmarks(path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
+    let text = crate::io_util::read_text(path).map_err(|source| LandmarkFileError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -106,7 +145,7 @@ pub fn read_landmarks(path: &Path) -> Result<LandmarkFile, LandmarkError> {
     } else if name.ends_with(".csv") {
         parse_csv(&text, path)
     } else {
-        Err(LandmarkError::UnknownFormat {
+        Err(LandmarkFileError::UnknownFormat {
             path: path.to_path_buf(),
         })
     }
@@ -120,7 +159,7 @@ fn parse_frame(value: &str) -> Option<Frame> {
     }
 }
 
-fn parse_fcsv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
+fn parse_fcsv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
     let mut frame = None;
     let mut columns: Vec<String> = "id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID"
         .split(',')
@@ -173,7 +212,7 @@ fn parse_fcsv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
                 .get(k)
                 .ok_or_else(|| parse_err(path, line, format!("missing column {what}")))
         };
-        let num = |k: usize, what: &str| -> Result<f64, LandmarkError> {
+        let num = |k: usize, what: &str| -> Result<f64, LandmarkFileError> {
             let f = field(k, what)?;
             f.trim().parse().map_err(|_| {
                 parse_err(
@@ -206,11 +245,11 @@ fn csv_record(line: &str) -> Result<csv::StringRecord, String> {
     }
 }
 
-fn json_value(text: &str, path: &Path) -> Result<Value, LandmarkError> {
+fn json_value(text: &str, path: &Path) -> Result<Value, LandmarkFileError> {
     serde_json::from_str(text).map_err(|e| parse_err(path, e.line(), e.to_string()))
 }
 
-fn json_point(v: &Value, path: &Path, what: &str) -> Result<Point3<f64>, LandmarkError> {
+fn json_point(v: &Value, path: &Path, what: &str) -> Result<Point3<f64>, LandmarkFileError> {
     let arr = v
         .as_array()
         .filter(|a| a.len() == 3)
@@ -227,7 +266,7 @@ fn json_point(v: &Value, path: &Path, what: &str) -> Result<Point3<f64>, Landmar
     Ok(Point3::new(c(0)?, c(1)?, c(2)?))
 }
 
-fn parse_mrk_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
+fn parse_mrk_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
     let root = json_value(text, path)?;
     let markups = root["markups"]
         .as_array()
@@ -266,7 +305,7 @@ fn parse_mrk_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError
     })
 }
 
-fn parse_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
+fn parse_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
     let root = json_value(text, path)?;
     let obj = root
         .as_object()
@@ -301,7 +340,7 @@ fn parse_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
     })
 }
 
-fn parse_csv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkError> {
+fn parse_csv(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
     let mut collected = Collected::new(path);
     let mut seen_data = false;
     for (i, text) in text.lines().enumerate() {
