@@ -8,7 +8,6 @@ pub mod atlas;
 pub mod cli;
 pub mod config;
 pub mod ear;
-pub mod error;
 pub mod export;
 pub mod fem;
 pub mod image;
@@ -22,4 +21,4 @@ pub mod progress;
 pub mod register;
 pub mod report;
 
-pub use error::{Error, ExitStatus};
+pub use pipeline::Error;

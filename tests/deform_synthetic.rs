@@ -16,7 +16,9 @@ use otoatlas::mesh::tet::BoundaryOf;
 use otoatlas::mesh::{TetMesh, TriMesh, shapes};
 use otoatlas::meshdev::{CompareOptions, compare};
 use otoatlas::phantom::imaging::{Grid, ImagingParams, render};
-use otoatlas::register::deform::{DeformConfig, ProbeKind, ProbeTriangle, deform};
+use otoatlas::register::deform::{
+    DeformConfig, ProbeConfig, ProbeKind, ProbeTriangle, deform, probe,
+};
 use otoatlas::register::refine::{RefineStop, refine};
 
 #[test]
@@ -214,4 +216,86 @@ fn the_surface_level_moves_a_stretched_block_onto_the_imaged_block() {
             );
         }
     }
+}
+
+// The border probe on its own, on images rendered by the phantom's imaging model.
+
+fn probe_cfg() -> ProbeConfig {
+    ProbeConfig {
+        search_range_mm: 1.0,
+        intensity_shift_hu: 2000.0,
+        ratio_threshold: 0.15,
+        bone_min_hu: 300.0,
+        sheet_contrast_hu: 200.0,
+    }
+}
+
+/// Bone for x < 2.13 mm, air beyond; rendered with partial volume and blur, no noise.
+fn half_space() -> otoatlas::image::Volume {
+    let field = |p: &Point3<f64>| if p.x < 2.13 { 1800.0 } else { -1000.0 };
+    let grid = Grid {
+        dims: [30, 8, 8],
+        spacing: [0.2; 3],
+        origin: Vector3::zeros(),
+        direction: Matrix3::identity(),
+    };
+    render(
+        &field,
+        &grid,
+        &ImagingParams {
+            noise_sd_hu: 0.0,
+            psf_fwhm_mm: 0.25,
+            ..ImagingParams::clean(1)
+        },
+    )
+}
+
+#[test]
+fn finds_a_bone_edge_from_inside_and_from_outside_within_a_fifth_of_a_voxel() {
+    let v = half_space();
+    let s = Sampler::new(&v).unwrap();
+    for start in [1.63, 1.9, 2.3, 2.71] {
+        let b = Point3::new(start, 0.8, 0.8);
+        let border = probe(&s, &b, &Vector3::x(), ProbeKind::Bone, 0.2, &probe_cfg()).unwrap();
+        assert!(
+            (border.point.x - 2.13).abs() < 0.04,
+            "from {start}: {}",
+            border.point.x
+        );
+        assert!((border.offset_mm - (2.13 - start)).abs() < 0.04);
+    }
+    // with the normal reversed, the outward walk enters bone: that is not a bone boundary
+    // seen from this side, and nothing else is in range
+    let b = Point3::new(2.9, 0.8, 0.8);
+    assert!(probe(&s, &b, &-Vector3::x(), ProbeKind::Bone, 0.2, &probe_cfg()).is_none());
+}
+
+#[test]
+fn finds_a_thin_sheet_as_a_ridge() {
+    let field = |p: &Point3<f64>| {
+        if (p.x - 2.05).abs() < 0.05 {
+            40.0
+        } else {
+            -1000.0
+        }
+    };
+    let grid = Grid {
+        dims: [30, 6, 6],
+        spacing: [0.2; 3],
+        origin: Vector3::zeros(),
+        direction: Matrix3::identity(),
+    };
+    let v = render(
+        &field,
+        &grid,
+        &ImagingParams {
+            noise_sd_hu: 0.0,
+            supersample: 5,
+            ..ImagingParams::clean(1)
+        },
+    );
+    let s = Sampler::new(&v).unwrap();
+    let b = Point3::new(1.7, 0.6, 0.6);
+    let border = probe(&s, &b, &Vector3::x(), ProbeKind::Sheet, 0.2, &probe_cfg()).unwrap();
+    assert!((border.point.x - 2.05).abs() < 0.05, "{}", border.point.x);
 }

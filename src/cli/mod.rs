@@ -3,6 +3,7 @@
 
 pub mod atlas;
 mod batch;
+mod exit;
 mod inspect;
 mod landmarks;
 mod package_arg;
@@ -101,7 +102,7 @@ pub fn main() -> ExitCode {
             }
             // a report that carries a verdict which failed is a failed case
             if report.json.get("passed") == Some(&serde_json::Value::Bool(false)) {
-                ExitCode::from(crate::ExitStatus::CaseFailed as u8)
+                ExitCode::from(exit::ExitStatus::CaseFailed as u8)
             } else {
                 ExitCode::SUCCESS
             }
@@ -111,7 +112,7 @@ pub fn main() -> ExitCode {
 }
 
 fn fail(err: &Error, json: bool) -> ExitCode {
-    let code = err.exit_status() as u8;
+    let code = exit::exit_status(err) as u8;
     if json {
         let body = serde_json::json!({ "error": err.to_string(), "exit_code": code });
         let body = serde_json::to_string_pretty(&body).unwrap_or_default();

@@ -11,8 +11,8 @@ use super::Report;
 use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::load_atlas;
-use crate::mechanics::plots::validation_plots;
 use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_package};
+use crate::report::mechanics_plots::validation_plots;
 
 /// Validate the mechanics of an atlas: umbo displacement under static pressure (UDSP) and the
 /// stapes velocity transfer function (TFA), with verdicts.
@@ -97,7 +97,11 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
             path: dir.clone(),
             source,
         })?;
-        for (name, svg) in validation_plots(&validation)? {
+        let charts = validation_plots(&validation).map_err(|e| Error::Report {
+            path: dir.clone(),
+            source: e.into(),
+        })?;
+        for (name, svg) in charts {
             let path = dir.join(name);
             crate::io_util::write_atomic(&path, svg.as_bytes())?;
         }

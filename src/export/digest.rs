@@ -5,13 +5,12 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::Error;
-use crate::io_util::{io_err, sha256_hex};
+use crate::io_util::{FileError, io_err, sha256_hex};
 
 /// Every regular file under `dir` (recursively, following links), as paths relative to `dir`
 /// with `/` separators, sorted, each with the SHA-256 of its bytes. A file `dir` itself gives
 /// one entry named after it.
-pub fn file_digests(dir: &Path) -> Result<BTreeMap<String, String>, Error> {
+pub fn file_digests(dir: &Path) -> Result<BTreeMap<String, String>, FileError> {
     let mut out = BTreeMap::new();
     if dir.is_file() {
         let name = dir
@@ -39,7 +38,7 @@ pub fn file_digests(dir: &Path) -> Result<BTreeMap<String, String>, Error> {
 }
 
 /// SHA-256 of a file's bytes (lower-case hex).
-pub fn file_sha256(path: &Path) -> Result<String, Error> {
+pub fn file_sha256(path: &Path) -> Result<String, FileError> {
     Ok(sha256_hex(&std::fs::read(path).map_err(io_err(path))?))
 }
 

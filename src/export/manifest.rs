@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::Error;
+use super::ExportError;
 use crate::atlas::Atlas;
 use crate::atlas::format::manifest_string;
 use crate::config::Config;
@@ -153,7 +153,8 @@ pub struct Manifest {
     pub atlas: AtlasRef,
     /// SHA-256 of the DICOM SeriesInstanceUID (None for NIfTI input); never the UID.
     pub series_uid_sha256: Option<String>,
-    /// [`crate::pipeline::Case::inputs_sha256`] of the case's input files.
+    /// SHA-256 over the case's input files (image, landmark file, segmentation), as `run`
+    /// computes it for batch resume.
     pub inputs_sha256: String,
     /// [`Config::sha256`] of `config`.
     pub config_sha256: String,
@@ -176,19 +177,25 @@ pub struct Manifest {
 
 impl Manifest {
     /// The manifest text: pretty JSON, fields in declaration order, maps sorted.
-    pub fn to_json(&self) -> Result<String, Error> {
+    pub fn to_json(&self) -> Result<String, ExportError> {
         serde_json::to_string_pretty(self)
             .map(|s| s + "\n")
-            .map_err(|e| Error::Usage(format!("{MANIFEST}: cannot serialise: {e}")))
+            .map_err(|e| ExportError::Serialise {
+                path: MANIFEST.into(),
+                message: e.to_string(),
+            })
     }
 }
 
 /// SHA-256 of the atlas as the run used it (mirrored to the case's side), over its canonical
 /// files: `atlas.json` and `mesh.vtu` exactly as `otoatlas atlas export`/`write_atlas` writes
 /// them. The same atlas gives the same digest whatever folder it was read from.
-pub fn atlas_sha256(atlas: &Atlas) -> Result<String, Error> {
+pub fn atlas_sha256(atlas: &Atlas) -> Result<String, ExportError> {
     let manifest = manifest_string(atlas)?;
-    let mesh = vtu_string(&atlas.mesh, &[], VtuEncoding::Base64)
-        .map_err(|e| Error::Usage(format!("atlas '{}': {e}", atlas.name)))?;
+    let mesh =
+        vtu_string(&atlas.mesh, &[], VtuEncoding::Base64).map_err(|e| ExportError::Materials {
+            atlas: atlas.name.clone(),
+            message: e.to_string(),
+        })?;
     Ok(sha256_hex(format!("{manifest}{mesh}").as_bytes()))
 }

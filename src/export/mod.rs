@@ -5,15 +5,15 @@
 //! Layout and manifest fields: docs/package-format.md.
 
 pub mod digest;
+mod error;
 pub mod manifest;
 pub mod package;
 pub mod scene;
 mod scene_bending;
 pub mod sofa;
 pub mod verify;
-mod verify_bending;
-mod verify_scene;
 
+pub use error::ExportError;
 pub use manifest::{Manifest, MechanicsSummary, atlas_sha256};
 pub use package::{PackageInput, write_package};
 pub use verify::{Fault, VerifyReport, verify_package};

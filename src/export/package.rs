@@ -20,13 +20,13 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 use serde_json::Value;
 
+use super::ExportError;
 use super::digest::file_digests;
 use super::manifest::{
     AtlasRef, FORMAT, MANIFEST, Manifest, MechanicsSummary, MeshCounts, Registration, Units,
     VERSION, atlas_sha256,
 };
 use super::scene::{SCENE, SCENE_MESH, scene_string};
-use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manifest_string};
@@ -60,13 +60,13 @@ pub struct PackageInput<'a> {
 }
 
 /// Writes the package `dir` (replacing an older one) and returns its manifest.
-pub fn write_package(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+pub fn write_package(dir: &Path, input: &PackageInput) -> Result<Manifest, ExportError> {
     write_dir_atomic(dir, |tmp| write_parts(tmp, input))
 }
 
 /// Writes `out/package/` and the run-time facts of writing it (seconds, Unix time, file
 /// count, whether the patient fields were kept) beside it in `out/package.log.json`.
-pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest, ExportError> {
     let t = std::time::Instant::now();
     let manifest = write_package(&out.join(PACKAGE_DIR), input)?;
     let written = std::time::SystemTime::now()
@@ -100,7 +100,7 @@ fn registration(fit: &RigidFit, deform: &Value) -> Registration {
     }
 }
 
-fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, Error> {
+fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, ExportError> {
     let atlas = input.atlas;
     let mut registered = atlas.clone();
     registered.mesh.tets.nodes = input.nodes.to_vec();

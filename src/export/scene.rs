@@ -19,9 +19,9 @@ use std::fmt::Write as _;
 
 use nalgebra::Point3;
 
+use super::ExportError;
 use super::scene_bending::{self, BendingLayer};
 use super::sofa::plugins_for;
-use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::export::material_arrays;
 use crate::mechanics::MechanicalSystem;
@@ -93,7 +93,7 @@ impl CellMaterials {
     }
 }
 
-fn element_materials(atlas: &Atlas) -> Result<ElementMaterials, Error> {
+fn element_materials(atlas: &Atlas) -> Result<ElementMaterials, ExportError> {
     let cells = CellMaterials::of(atlas);
     let (e, nu, h) = (&cells.modulus, &cells.poisson, &cells.thickness);
     let n_tets = atlas.mesh.tets.tets.len();
@@ -101,19 +101,22 @@ fn element_materials(atlas: &Atlas) -> Result<ElementMaterials, Error> {
     if [e, nu, h].iter().any(|c| c.len() != n_cells)
         || e.iter().chain(nu).chain(h).any(|v| !v.is_finite())
     {
-        return Err(Error::Usage(format!(
-            "atlas '{}': a cell without a known region or material; the scene needs one \
-             material per element",
-            atlas.name
-        )));
+        return Err(ExportError::Materials {
+            atlas: atlas.name.clone(),
+            message: "a cell without a known region or material; the scene needs one material \
+                      per element"
+                .into(),
+        });
     }
     let tet_poisson = nu.first().copied().unwrap_or(0.3);
     if let Some(other) = nu[..n_tets].iter().find(|&&v| v != tet_poisson) {
-        return Err(Error::Usage(format!(
-            "atlas '{}': the tetrahedra have Poisson's ratios {tet_poisson} and {other}; \
-             SOFA's TetrahedronFEMForceField takes one ratio before v24.12",
-            atlas.name
-        )));
+        return Err(ExportError::Materials {
+            atlas: atlas.name.clone(),
+            message: format!(
+                "the tetrahedra have Poisson's ratios {tet_poisson} and {other}; SOFA's \
+                 TetrahedronFEMForceField takes one ratio before v24.12"
+            ),
+        });
     }
     Ok(ElementMaterials {
         tet_modulus: e[..n_tets].to_vec(),
@@ -124,7 +127,7 @@ fn element_materials(atlas: &Atlas) -> Result<ElementMaterials, Error> {
 }
 
 /// The scene for `atlas` with its nodes at `nodes` (the registered positions).
-pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Error> {
+pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, ExportError> {
     let system = MechanicalSystem::new(atlas, nodes)?;
     let materials = element_materials(atlas)?;
     let n = nodes.len();

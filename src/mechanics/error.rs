@@ -26,8 +26,6 @@ pub enum MechanicsError {
         value: f64,
         expected: &'static str,
     },
-    #[error(transparent)]
-    Plot(#[from] crate::report::plot::PlotError),
 }
 
 impl MechanicsError {

@@ -7,7 +7,6 @@
 
 pub mod boundary;
 pub mod error;
-pub mod plots;
 pub mod simulate;
 pub mod tfa;
 pub mod udsp;

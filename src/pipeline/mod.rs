@@ -5,6 +5,7 @@ pub mod batch;
 pub mod case;
 pub mod cohort;
 pub mod cohort_summary;
+mod error;
 pub mod mechanics;
 pub mod run;
 pub mod sbatch;
@@ -12,5 +13,6 @@ pub mod score;
 pub mod stage;
 
 pub use case::Case;
+pub use error::Error;
 pub use run::{RunOptions, RunSummary, run_case};
 pub use stage::Stage;

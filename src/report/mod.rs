@@ -5,6 +5,7 @@ pub mod case;
 pub mod cohort;
 pub mod error;
 pub mod html;
+pub mod mechanics_plots;
 pub mod metrics;
 pub mod overlay;
 pub mod plot;

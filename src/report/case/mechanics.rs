@@ -4,8 +4,8 @@
 
 use super::super::error::ReportError;
 use super::super::html::{Figure, FigureContent, Page};
-use crate::mechanics::plots::validation_plots;
-use crate::mechanics::{MechanicsError, Validation};
+use super::super::mechanics_plots::validation_plots;
+use crate::mechanics::Validation;
 
 pub(super) fn mechanics_section(
     page: &mut Page,
@@ -61,18 +61,7 @@ pub(super) fn mechanics_section(
         "tf_phase.svg" => "phase of H_V: the package and the atlas",
         _ => "umbo displacement under static pressure: the package and the atlas",
     };
-    let charts = match validation_plots(v) {
-        Ok(charts) => charts,
-        Err(MechanicsError::Plot(e)) => return Err(e.into()),
-        // drawing charts of computed figures fails only in the plotting itself
-        Err(other) => {
-            page.paragraph(
-                &format!("The charts could not be drawn: {other}"),
-                Some("bad"),
-            );
-            return Ok(());
-        }
-    };
+    let charts = validation_plots(v)?;
     let figures: Vec<Figure> = charts
         .into_iter()
         .map(|(name, svg)| Figure {

@@ -13,7 +13,7 @@ use otoatlas::config::Config;
 use otoatlas::io_util::write_atomic;
 use otoatlas::mesh::io::ply::{VertexAttributes, ply_bytes};
 use otoatlas::meshdev::structures::{
-    default_label_table, load_structures, pair_structures, parse_label_table,
+    StructuresError, default_label_table, load_structures, pair_structures, parse_label_table,
 };
 use otoatlas::meshdev::{ColourRange, CompareOptions, Sampling, compare};
 
@@ -105,7 +105,14 @@ fn run(args: &Args) -> Result<String, (u8, String)> {
         .map_err(|e| usage(e.to_string()))?
         .ingest;
     let load = |p: &Path| {
-        load_structures(p, &labels, &ingest).map_err(|e| (e.exit_status() as u8, e.to_string()))
+        load_structures(p, &labels, &ingest).map_err(|e| {
+            // a folder that cannot be listed is this run's failure; anything else is the input
+            let code = match e {
+                StructuresError::Io { .. } => 1,
+                _ => 2,
+            };
+            (code, e.to_string())
+        })
     };
     let (reference, test) = (load(&args.reference)?, load(&args.test)?);
     let (pairs, unpaired) = pair_structures(&reference, &test, &aliases);

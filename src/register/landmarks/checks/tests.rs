@@ -5,7 +5,8 @@ use nalgebra::{Point3, Rotation3, Vector3};
 
 /// The shipped configuration's `[landmarks]`.
 fn cfg() -> CheckConfig {
-    crate::config::Config::default_config().unwrap().landmarks
+    let shipped: toml::Table = toml::from_str(include_str!("../../../../pipeline.toml")).unwrap();
+    shipped["landmarks"].clone().try_into().unwrap()
 }
 
 /// The triangle with umbo-IMJ `a`, umbo-ISJ `b`, IMJ-ISJ `c` [mm], turned and moved.

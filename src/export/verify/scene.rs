@@ -10,70 +10,15 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use roxmltree::{Document, Node};
 
-use super::scene::{CellMaterials, SCENE};
-use super::sofa::{STRUCTURAL, plugin_of};
-use super::verify::Faults;
-use super::verify_bending::check_bending;
+use super::bending::check_bending;
+use super::faults::Faults;
+use super::xml::{Scene, close, numbers};
 use crate::atlas::Atlas;
 use crate::atlas::materials::KG_PER_M3_TO_G_PER_MM3;
+use crate::export::scene::{CellMaterials, SCENE};
+use crate::export::sofa::{STRUCTURAL, plugin_of};
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::tet::signed_volume;
-
-/// Largest relative difference accepted between a scene number and its recomputation.
-const REL_TOL: f64 = 1e-9;
-
-pub(super) fn close(a: f64, b: f64) -> bool {
-    (a - b).abs() <= REL_TOL * a.abs().max(b.abs())
-}
-
-/// The scene's elements by tag name.
-pub(super) struct Scene<'a, 'input> {
-    by_tag: BTreeMap<&'a str, Vec<Node<'a, 'input>>>,
-}
-
-impl<'a, 'input> Scene<'a, 'input> {
-    /// Every element named `tag`.
-    pub(super) fn all(&self, tag: &str) -> impl Iterator<Item = Node<'a, 'input>> + '_ {
-        self.by_tag.get(tag).into_iter().flatten().copied()
-    }
-
-    /// The one element named `tag` (a fault if absent or repeated).
-    fn one(&self, tag: &str, faults: &mut Faults) -> Option<Node<'a, 'input>> {
-        match self.by_tag.get(tag).map(Vec::as_slice) {
-            Some([node]) => Some(*node),
-            found => {
-                let n = found.map_or(0, <[_]>::len);
-                faults.add(
-                    "scene",
-                    SCENE,
-                    format!("{n} {tag} components, expected one"),
-                );
-                None
-            }
-        }
-    }
-}
-
-/// The numbers of attribute `attr` of `node` (a fault if absent or not numbers).
-pub(super) fn numbers(node: Node, attr: &str, faults: &mut Faults) -> Option<Vec<f64>> {
-    let tag = node.tag_name().name();
-    let Some(text) = node.attribute(attr) else {
-        faults.add("scene", SCENE, format!("{tag} has no {attr}"));
-        return None;
-    };
-    let parsed: Result<Vec<f64>, _> = text.split_whitespace().map(str::parse).collect();
-    match parsed {
-        Ok(v) if v.iter().all(|x| x.is_finite()) => Some(v),
-        _ => {
-            faults.add(
-                "scene",
-                SCENE,
-                format!("{tag}.{attr}: expected finite numbers"),
-            );
-            None
-        }
-    }
-}
 
 fn check_len(node: Node, attr: &str, values: &[f64], want: usize, what: &str, faults: &mut Faults) {
     if values.len() != want {
@@ -130,9 +75,7 @@ pub(super) fn check_scene(
     if root.tag_name().name() != "Node" {
         faults.add("scene", SCENE, "the root element is not a Node");
     }
-    let mut scene = Scene {
-        by_tag: BTreeMap::new(),
-    };
+    let mut scene = Scene::default();
     let mut required = BTreeSet::new();
     let mut needed = BTreeSet::new();
     for node in root.descendants().filter(Node::is_element) {
@@ -145,7 +88,7 @@ pub(super) fn check_scene(
                 Some(plugin) => needed.extend(plugin),
             }
         }
-        scene.by_tag.entry(tag).or_default().push(node);
+        scene.add(tag, node);
     }
     for plugin in needed.difference(&required) {
         faults.add(
@@ -271,41 +214,31 @@ fn check_vectors(scene: &Scene, mesh: &VolumeMesh, atlas: Option<&Atlas>, faults
     }
     let fixed = ["FixedConstraint", "FixedProjectiveConstraint"]
         .iter()
-        .flat_map(|t| scene.by_tag.get(t).into_iter().flatten())
+        .flat_map(|t| scene.all(t))
         .collect::<Vec<_>>();
     if fixed.is_empty() {
         faults.add("scene", SCENE, "no fixed constraint: the model would float");
     }
     for node in fixed {
-        if let Some(i) = numbers(*node, "indices", faults) {
-            check_indices(*node, "indices", &i, n, faults);
+        if let Some(i) = numbers(node, "indices", faults) {
+            check_indices(node, "indices", &i, n, faults);
         }
     }
-    for node in scene
-        .by_tag
-        .get("RestShapeSpringsForceField")
-        .into_iter()
-        .flatten()
-    {
+    for node in scene.all("RestShapeSpringsForceField") {
         if let (Some(p), Some(k)) = (
-            numbers(*node, "points", faults),
-            numbers(*node, "stiffness", faults),
+            numbers(node, "points", faults),
+            numbers(node, "stiffness", faults),
         ) {
-            check_indices(*node, "points", &p, n, faults);
+            check_indices(node, "points", &p, n, faults);
             if k.len() != 1 {
-                check_len(*node, "stiffness", &k, p.len(), "spring points", faults);
+                check_len(node, "stiffness", &k, p.len(), "spring points", faults);
             }
         }
     }
-    for node in scene
-        .by_tag
-        .get("DiagonalVelocityDampingForceField")
-        .into_iter()
-        .flatten()
-    {
-        if let Some(c) = numbers(*node, "dampingCoefficient", faults) {
+    for node in scene.all("DiagonalVelocityDampingForceField") {
+        if let Some(c) = numbers(node, "dampingCoefficient", faults) {
             check_len(
-                *node,
+                node,
                 "dampingCoefficient",
                 &c,
                 3 * n,

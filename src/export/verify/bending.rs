@@ -9,11 +9,11 @@ use std::collections::HashMap;
 use nalgebra::Vector3;
 use roxmltree::Node;
 
-use super::scene::SCENE;
-use super::scene_bending::{STIFFNESS_PER_RIGIDITY, add_spring_force};
-use super::verify::Faults;
-use super::verify_scene::{Scene, close, numbers};
+use super::faults::Faults;
+use super::xml::{Scene, close, numbers};
 use crate::atlas::Atlas;
+use crate::export::scene::SCENE;
+use crate::export::scene_bending::{STIFFNESS_PER_RIGIDITY, add_spring_force};
 use crate::mesh::io::VolumeMesh;
 
 /// Largest net force left at rest, relative to the largest spring force there.

@@ -7,20 +7,26 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
 use serde_json::{Value, json};
 
+mod bending;
+mod faults;
+mod scene;
+mod xml;
+
+use super::ExportError;
 use super::digest::file_digests;
 use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION};
 use super::scene::{SCENE, SCENE_MESH};
-use super::verify_scene::check_scene;
-use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, read_atlas};
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
 use crate::mesh::tet::signed_volume;
+pub use faults::Fault;
+use faults::Faults;
+use scene::check_scene;
 
 /// Files every package has (besides the manifest).
 pub const REQUIRED_FILES: [&str; 7] = [
@@ -32,16 +38,6 @@ pub const REQUIRED_FILES: [&str; 7] = [
     "landmarks.mrk.json",
     "landmarks.json",
 ];
-
-/// One thing wrong with a package.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Fault {
-    /// The kind of check: manifest, missing, unlisted, hash, mesh, orientation, atlas, scene.
-    pub check: &'static str,
-    /// The file it is about, relative to the package.
-    pub file: String,
-    pub message: String,
-}
 
 /// What `verify` found.
 #[derive(Debug, Clone, PartialEq)]
@@ -96,28 +92,14 @@ impl VerifyReport {
     }
 }
 
-/// Collects faults.
-#[derive(Default)]
-pub(super) struct Faults(pub(super) Vec<Fault>);
-
-impl Faults {
-    pub(super) fn add(&mut self, check: &'static str, file: &str, message: impl Into<String>) {
-        self.0.push(Fault {
-            check,
-            file: file.to_string(),
-            message: message.into(),
-        });
-    }
-}
-
 /// Verifies the package at `dir`. `Err` only when `dir` is not a readable folder; every
 /// problem inside it is a fault of the report.
-pub fn verify_package(dir: &Path) -> Result<VerifyReport, Error> {
+pub fn verify_package(dir: &Path) -> Result<VerifyReport, ExportError> {
     if !dir.is_dir() {
-        return Err(Error::Usage(format!(
-            "{}: not a package folder (expected a folder with {MANIFEST})",
-            dir.display()
-        )));
+        return Err(ExportError::NotAPackage {
+            path: dir.to_path_buf(),
+            manifest: MANIFEST,
+        });
     }
     let actual = file_digests(dir)?;
     let mut faults = Faults::default();

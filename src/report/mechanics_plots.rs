@@ -3,31 +3,30 @@
 
 use plotters::style::RGBColor;
 
-use super::error::MechanicsError;
-use super::validate::Validation;
-use super::verdict::GOODE_BAND;
-use crate::report::plot::{Series, line_chart_svg};
+use super::plot::{PlotError, Series, line_chart_svg};
+use crate::mechanics::verdict::GOODE_BAND;
+use crate::mechanics::{StaticCurve, TransferFunction, Validation};
 
 const MODEL: RGBColor = RGBColor(200, 60, 40);
 const ATLAS: RGBColor = RGBColor(60, 90, 180);
 const BAND: RGBColor = RGBColor(150, 150, 150);
 
 /// (file name, SVG) of every chart of `v` (no UDSP chart when the curve was not computed).
-pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, MechanicsError> {
+pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, PlotError> {
     let tf = &v.mechanics.transfer_function;
-    let mag = |t: &super::tfa::TransferFunction| -> Vec<(f64, f64)> {
+    let mag = |t: &TransferFunction| -> Vec<(f64, f64)> {
         t.points
             .iter()
             .map(|p| (p.frequency_hz.log10(), p.magnitude_um_s_per_pa))
             .collect()
     };
-    let phase = |t: &super::tfa::TransferFunction| -> Vec<(f64, f64)> {
+    let phase = |t: &TransferFunction| -> Vec<(f64, f64)> {
         t.points
             .iter()
             .map(|p| (p.frequency_hz.log10(), p.phase_deg))
             .collect()
     };
-    let umbo = |c: &super::udsp::StaticCurve| -> Vec<(f64, f64)> {
+    let umbo = |c: &StaticCurve| -> Vec<(f64, f64)> {
         c.points
             .iter()
             .map(|p| (p.pressure_pa, p.umbo_mm * 1e3))
