@@ -36,6 +36,12 @@ pub fn exit_status(err: &Error) -> ExitStatus {
             | crate::phantom::PhantomError::WriteMesh(_) => ExitStatus::CaseFailed,
             _ => ExitStatus::BadInput,
         },
+        // a numerical failure of valid input is the case's failure; nothing found around the
+        // placed atlas means the image or the landmarks are not this ear's
+        Error::Deform(e) => match e {
+            crate::register::deform::DeformError::Fem(_) => ExitStatus::CaseFailed,
+            crate::register::deform::DeformError::NothingFound => ExitStatus::BadInput,
+        },
         Error::Export(e) => match e {
             crate::export::ExportError::File(_) | crate::export::ExportError::Serialise { .. } => {
                 ExitStatus::CaseFailed
@@ -51,5 +57,29 @@ pub fn exit_status(err: &Error) -> ExitStatus {
             _ => ExitStatus::CaseFailed,
         },
         Error::Io { .. } | Error::MeshDev(_) | Error::Report { .. } => ExitStatus::CaseFailed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::FemError;
+    use crate::register::deform::DeformError;
+
+    #[test]
+    fn a_numerical_failure_is_the_cases_failure_and_bad_input_is_bad_input() {
+        let fem = Error::from(DeformError::Fem(FemError::NonFinite {
+            what: "displacement",
+            index: 3,
+        }));
+        assert_eq!(exit_status(&fem), ExitStatus::CaseFailed);
+        let nothing = Error::from(DeformError::NothingFound);
+        assert_eq!(exit_status(&nothing), ExitStatus::BadInput);
+        let io = Error::from(crate::io_util::io_err(std::path::Path::new("x"))(
+            std::io::Error::other("disk full"),
+        ));
+        assert_eq!(exit_status(&io), ExitStatus::CaseFailed);
+        let usage = Error::Usage("--jobs 0".into());
+        assert_eq!(exit_status(&usage), ExitStatus::BadInput);
     }
 }

@@ -33,6 +33,8 @@ pub enum Error {
     Mechanics(#[from] crate::mechanics::MechanicsError),
     #[error(transparent)]
     Export(#[from] crate::export::ExportError),
+    #[error(transparent)]
+    Deform(#[from] crate::register::deform::DeformError),
     #[error("{path}: cannot write the report: {source}")]
     Report {
         path: PathBuf,

@@ -342,8 +342,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             &config.articulate,
             &config.deform,
             &config.refine,
-        )
-        .map_err(|e| Error::Usage(e.to_string()))?;
+        )?;
         let (result, eardrum) = (registered.deform, registered.eardrum);
         if let DeformStatus::InversionGuard { message } = &result.status {
             progress::log(format!(
