@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
-use super::truth::ossicle_surfaces;
+use super::truth::{ChainPlacement, ossicle_surfaces};
 use super::variability::Ossicle;
 use crate::atlas::sdf::Disc;
 use crate::atlas::{Anatomy, Side};
@@ -208,25 +208,6 @@ impl ChainAnatomy {
             },
         }
     }
-}
-
-/// How the atlas was placed on the chain (truth.json's `anatomy` record).
-#[derive(Debug, Clone, Serialize)]
-pub struct ChainPlacement {
-    /// The chain folder's name.
-    pub name: String,
-    /// The parts, by name.
-    pub parts: Vec<&'static str>,
-    /// The chain was mirrored to the requested side.
-    pub mirrored: bool,
-    /// Atlas frame to the chain's frame (after mirroring).
-    pub atlas_to_chain: SimilarityTransform,
-    /// RMS of the atlas landmarks against the chain's after the landmark fit [mm].
-    pub landmark_rms_mm: f64,
-    /// Mean distance of the atlas ossicle surfaces to the chain after ICP [mm].
-    pub icp_mean_mm: f64,
-    /// How far the oval window was moved from the atlas's footplate [mm].
-    pub footplate_shift_mm: f64,
 }
 
 /// A real chain in the atlas frame, with the atlas around it.

@@ -7,7 +7,6 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::imaging::ImagingParams;
-use super::mesh_chain::ChainPlacement;
 use super::patient::PatientAnatomy;
 use super::scene::{CavityParams, TissueLevels};
 use super::variability::{OssicleMotion, ShapeDetail};
@@ -16,6 +15,7 @@ use crate::atlas::{Eardrum, Side};
 use crate::ear::Landmarks;
 use crate::mesh::isosurface::{SampledField, isosurface};
 use crate::mesh::{LabelledDomain, TriMesh};
+use crate::register::rigid::SimilarityTransform;
 
 /// Lattice step of the ossicle surfaces in the atlas frame [mm].
 pub const SURFACE_STEP_MM: f64 = 0.1;
@@ -207,6 +207,25 @@ pub struct Truth {
     pub cavity: CavityParams,
     /// Label values of `segmentation/labels.nii.gz`.
     pub labels: Vec<(u16, String)>,
+}
+
+/// How the atlas was placed on the chain (truth.json's `anatomy` record).
+#[derive(Debug, Clone, Serialize)]
+pub struct ChainPlacement {
+    /// The chain folder's name.
+    pub name: String,
+    /// The parts, by name.
+    pub parts: Vec<&'static str>,
+    /// The chain was mirrored to the requested side.
+    pub mirrored: bool,
+    /// Atlas frame to the chain's frame (after mirroring).
+    pub atlas_to_chain: SimilarityTransform,
+    /// RMS of the atlas landmarks against the chain's after the landmark fit [mm].
+    pub landmark_rms_mm: f64,
+    /// Mean distance of the atlas ossicle surfaces to the chain after ICP [mm].
+    pub icp_mean_mm: f64,
+    /// How far the oval window was moved from the atlas's footplate [mm].
+    pub footplate_shift_mm: f64,
 }
 
 #[cfg(test)]

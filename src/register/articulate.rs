@@ -21,10 +21,10 @@
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::atlas_fit::probe_triangles_by_part;
 use super::deform::{
     DeformConfig, ProbeConfig, ProbeTriangle, probe_surface, screen, triangle_neighbours,
 };
+use super::probes::probe_triangles_by_part;
 use crate::atlas::{Atlas, Part};
 use crate::ear::LandmarkName;
 use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};

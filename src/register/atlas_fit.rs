@@ -5,71 +5,21 @@
 //! The atlas must already be on the patient's side (see [`Atlas::mirrored`]): three landmarks
 //! cannot tell a left ear from a right one, so the side is decided before anything else.
 
-use std::collections::HashSet;
 use std::time::Instant;
 
 use nalgebra::Point3;
 use serde::Serialize;
 
 use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
-use super::deform::{
-    DeformConfig, DeformError, DeformResult, DeformStatus, ProbeKind, ProbeTriangle, deform,
-};
+use super::deform::{DeformConfig, DeformError, DeformResult, DeformStatus, deform};
 use super::eardrum::{EardrumFit, fit_eardrum};
+use super::probes::probe_triangles;
 use super::refine::{RefineConfig, Refinement, refine};
 use super::rigid::{RigidFit, fit_similarity};
-use crate::atlas::{Atlas, Part};
+use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
-use crate::mesh::tet::{BoundaryOf, signed_volume};
-
-/// The surfaces the deformable stage probes: the ossicles' faces on the outer boundary of the
-/// atlas (bone edges against air, fluid or soft tissue). Faces an ossicle shares with a joint,
-/// ligament or tendon are not probed: a joint is a thin soft layer between two bones that the
-/// image blurs into them, and connective tissue has no edge a CBCT can see; those faces follow
-/// through the FEM. The eardrum is fitted afterwards (see [`fit_eardrum`]).
-pub fn probe_triangles(atlas: &Atlas) -> Vec<ProbeTriangle> {
-    probe_triangles_by_part(atlas)
-        .into_iter()
-        .map(|(_, t)| t)
-        .collect()
-}
-
-/// [`probe_triangles`] with the ossicle each belongs to.
-pub fn probe_triangles_by_part(atlas: &Atlas) -> Vec<(Part, ProbeTriangle)> {
-    let key = |t: &[u32; 3]| {
-        let mut k = *t;
-        k.sort_unstable();
-        k
-    };
-    let outer: HashSet<[u32; 3]> = atlas
-        .mesh
-        .tets
-        .boundary(BoundaryOf::Whole)
-        .node_triangles()
-        .iter()
-        .map(key)
-        .collect();
-    let mut probes = Vec::new();
-    for part in Part::BONES {
-        probes.extend(
-            atlas
-                .part_triangles(part)
-                .into_iter()
-                .filter(|t| outer.contains(&key(t)))
-                .map(|nodes| {
-                    (
-                        part,
-                        ProbeTriangle {
-                            nodes,
-                            kind: ProbeKind::Bone,
-                        },
-                    )
-                }),
-        );
-    }
-    probes
-}
+use crate::mesh::tet::signed_volume;
 
 /// Fits the atlas landmarks onto the patient's; `None` when the patient's are degenerate.
 pub fn fit_landmarks(atlas: &Atlas, patient: &Landmarks, with_scale: bool) -> Option<RigidFit> {

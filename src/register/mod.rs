@@ -6,6 +6,7 @@ pub mod atlas_fit;
 pub mod deform;
 pub mod eardrum;
 pub mod landmarks;
+pub mod probes;
 pub mod refine;
 pub mod rigid;
 

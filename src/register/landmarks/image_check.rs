@@ -10,8 +10,9 @@ use serde::{Deserialize, Serialize};
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
-use crate::register::atlas_fit::{fit_landmarks, place, probe_triangles};
+use crate::register::atlas_fit::{fit_landmarks, place};
 use crate::register::deform::{ProbeConfig, probe_surface};
+use crate::register::probes::probe_triangles;
 
 /// The image and what places and probes the atlas in it.
 #[derive(Debug, Clone, Copy)]
