@@ -47,10 +47,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     per_stage[k].push(secs);
                 }
             }
-            dims = summary.metrics["image"]["dims"].to_string();
-            spacing = summary.metrics["image"]["spacing"][0]
-                .as_f64()
-                .unwrap_or(0.0);
+            let [nx, ny, nz] = summary.metrics.image.dims;
+            dims = format!("[{nx},{ny},{nz}]");
+            spacing = summary.metrics.image.spacing[0];
         }
         // a step that did not run (validation off) reads 0
         let m: Vec<f64> = per_stage

@@ -72,25 +72,24 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
         text,
         "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}), FEM levels {} after {} iterations{}",
         case.id,
-        m["side"].as_str().unwrap_or("?"),
-        m["rigid"]["rms_mm"].as_f64().unwrap_or(f64::NAN),
-        m["rigid"]["scale"].as_f64().unwrap_or(f64::NAN),
-        m["deform"]["status"]["status"].as_str().unwrap_or("?"),
-        m["deform"]["iterations"],
-        match m["deform"]["refinement"].as_object() {
+        m.side.as_str(),
+        m.rigid.rms_mm,
+        m.rigid.scale,
+        m.deform.status.name(),
+        m.deform.iterations,
+        match &m.deform.refinement {
             Some(r) => format!(
                 ", surface level {} after {} rounds{}",
-                r["stop"].as_str().unwrap_or("?"),
-                r["rounds"],
-                r["mean_offset_last_mm"]
-                    .as_f64()
+                r.stop.name(),
+                r.rounds,
+                r.mean_offset_last_mm
                     .map(|o| format!(", {o:.3} mm from the bone borders"))
                     .unwrap_or_default()
             ),
             None => String::new(),
         }
     );
-    if let Some(scores) = m["scores"].as_object() {
+    if let Some(scores) = &m.scores {
         let _ = writeln!(
             text,
             "\n{:<10} {:>12} {:>12} {:>10} {:>10}",
@@ -101,10 +100,10 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
                 text,
                 "{:<10} {:>9.3} mm {:>9.3} mm {:>7.3} mm {:>9.0} %",
                 name,
-                s["rigid"]["masd"].as_f64().unwrap_or(f64::NAN),
-                s["registered"]["masd"].as_f64().unwrap_or(f64::NAN),
-                s["registered"]["hd95"].as_f64().unwrap_or(f64::NAN),
-                100.0 * s["masd_improvement"].as_f64().unwrap_or(f64::NAN)
+                s.rigid.as_ref().map_or(f64::NAN, |r| r.masd),
+                s.registered.masd,
+                s.registered.hd95,
+                100.0 * s.masd_improvement.unwrap_or(f64::NAN)
             );
         }
     }
@@ -115,6 +114,6 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
     let _ = writeln!(text, "\nwrote {}", summary.out.display());
     Ok(Report {
         text,
-        json: summary.metrics,
+        json: serde_json::to_value(&summary.metrics).unwrap_or_default(),
     })
 }

@@ -18,7 +18,6 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
-use serde_json::Value;
 
 use super::ExportError;
 use super::digest::file_digests;
@@ -35,6 +34,7 @@ use crate::ear::write_mrk_json;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::{io_err, write_atomic, write_dir_atomic};
 use crate::mesh::io::gmsh::write_msh;
+use crate::register::atlas_fit::DeformRecord;
 use crate::register::rigid::RigidFit;
 
 /// The package folder's name in a run's output folder.
@@ -48,8 +48,8 @@ pub struct PackageInput<'a> {
     /// The registered node positions (LPS mm).
     pub nodes: &'a [Point3<f64>],
     pub fit: &'a RigidFit,
-    /// The deformable stage's summary (`status.status`, `iterations`), as `run` records it.
-    pub deform: &'a Value,
+    /// The deformable stage's record.
+    pub deform: &'a DeformRecord,
     pub config: &'a Config,
     pub series_uid_sha256: Option<String>,
     pub inputs_sha256: String,
@@ -85,18 +85,18 @@ pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest
 }
 
 /// The registration summary of the manifest.
-fn registration(fit: &RigidFit, deform: &Value) -> Registration {
+fn registration(fit: &RigidFit, deform: &DeformRecord) -> Registration {
     Registration {
         landmark_rms_mm: fit.rms_mm,
         landmark_residuals_mm: fit.residuals_mm.clone(),
         scale: fit.transform.scale,
-        deform_status: deform["status"]["status"]
-            .as_str()
-            .unwrap_or("unknown")
-            .to_string(),
-        deform_iterations: deform["iterations"].as_u64().unwrap_or(0),
-        refine_stop: deform["refinement"]["stop"].as_str().map(str::to_string),
-        refine_rounds: deform["refinement"]["rounds"].as_u64(),
+        deform_status: deform.status.name().to_string(),
+        deform_iterations: deform.iterations as u64,
+        refine_stop: deform
+            .refinement
+            .as_ref()
+            .map(|r| r.stop.name().to_string()),
+        refine_rounds: deform.refinement.as_ref().map(|r| r.rounds as u64),
     }
 }
 
@@ -178,7 +178,15 @@ mod tests {
             residuals_mm: vec![0.0; 3],
             rms_mm: 0.0,
         };
-        let deform = serde_json::json!({ "status": { "status": "converged" }, "iterations": 0 });
+        let deform: DeformRecord = serde_json::from_value(serde_json::json!({
+            "articulation": null,
+            "status": { "status": "max_iterations" },
+            "iterations": 0,
+            "history": [],
+            "eardrum": { "free_nodes": 0, "found_last_round": 0, "mean_offset_mm": 0.0 },
+            "probe_step_mm": 0.2,
+        }))
+        .unwrap();
         let input = PackageInput {
             atlas: &atlas,
             nodes: atlas.nodes(),

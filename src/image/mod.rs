@@ -78,6 +78,39 @@ pub struct LoadedImage {
     pub info: ImageInfo,
 }
 
+/// The ingest stage's record (`OUT/stages/ingest.json`, `metrics.json`'s `image`): where the
+/// image came from and its geometry. `run --from` compares it with the image read again.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ImageRecord {
+    /// The input path (written lossily when it is not UTF-8).
+    pub image: String,
+    pub format: String,
+    pub dims: [usize; 3],
+    pub spacing: [f64; 3],
+    pub origin: [f64; 3],
+    /// The direction cosines, row-major.
+    pub direction: [f64; 9],
+    pub laterality: Option<String>,
+    pub series_uid_sha256: Option<String>,
+}
+
+impl ImageRecord {
+    /// The record of `loaded`, read from `source`.
+    pub fn of(loaded: &LoadedImage, source: &Path) -> ImageRecord {
+        let v = &loaded.volume;
+        ImageRecord {
+            image: source.display().to_string(),
+            format: loaded.info.format.clone(),
+            dims: v.dims,
+            spacing: v.spacing,
+            origin: [v.origin.x, v.origin.y, v.origin.z],
+            direction: v.direction_row_major(),
+            laterality: loaded.info.laterality.clone(),
+            series_uid_sha256: loaded.info.series_uid_sha256.clone(),
+        }
+    }
+}
+
 /// Reads `path`: a NIfTI file (`.nii`, `.nii.gz`), a DICOM file (single- or multi-frame), or a
 /// folder searched recursively for a DICOM series (`series` chooses among several).
 pub fn load(

@@ -11,6 +11,7 @@ use super::batch::{Outcome, case_dir, read_status};
 use super::cohort::Skipped;
 use crate::Error;
 use crate::io_util::write_atomic;
+use crate::report::metrics::CaseMetrics;
 use crate::report::{CohortEntry, cohort_report};
 
 /// The list of the cohort's case ids that `batch` leaves in its output folder, so that the
@@ -48,8 +49,18 @@ fn read_case_list(out: &Path) -> Result<(Vec<String>, Vec<Skipped>), Error> {
     Ok((ids, skipped))
 }
 
-fn read_metrics(path: &Path) -> Option<Value> {
-    serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()
+/// A case's `metrics.json`: `None` when absent, an error naming the file when it is not one
+/// `run` writes.
+fn read_metrics(path: &Path) -> Result<Option<CaseMetrics>, String> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(None);
+    };
+    serde_json::from_str(&text).map(Some).map_err(|e| {
+        format!(
+            "{}: not a metrics.json that run writes: {e}",
+            path.display()
+        )
+    })
 }
 
 /// Merges the case folders of the batch output `out` into `out/cohort.json` (returned),
@@ -64,15 +75,19 @@ pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
         let dir = case_dir(out, id);
         let status = read_status(out, id);
         let metrics_path = dir.join("metrics.json");
+        let (metrics, unreadable) = match status.as_ref().map(|s| s.outcome) {
+            Some(Outcome::Ok | Outcome::Resumed) => match read_metrics(&metrics_path) {
+                Ok(metrics) => (metrics, None),
+                Err(why) => (None, Some(why)),
+            },
+            _ => (None, None),
+        };
         entries.push(CohortEntry {
             case: id.clone(),
-            metrics: status
-                .as_ref()
-                .filter(|s| s.outcome != Outcome::Failed)
-                .and_then(|_| read_metrics(&metrics_path)),
+            metrics,
             report_link: format!("cases/{id}/report.html"),
             error: match &status {
-                Some(s) => s.error.clone(),
+                Some(s) => s.error.clone().or(unreadable),
                 None => Some("not run: no shard has reached this case".into()),
             },
         });

@@ -9,8 +9,11 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use std::collections::BTreeMap;
+
 use nalgebra::Point3;
-use serde_json::{Value, json};
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
 
 use super::Case;
 use super::score::{Reference, StructureScore, score};
@@ -23,18 +26,22 @@ use crate::ear::{Landmarks, Side};
 use crate::export::MechanicsSummary;
 use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
-use crate::image::{self, LoadedImage, Sampler};
+use crate::image::{self, ImageRecord, LoadedImage, Sampler};
 use crate::io_util::write_atomic;
+use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
 use crate::pipeline::mechanics::validate_registered;
-use crate::register::atlas_fit::{deform_atlas, fit_landmarks, place};
+use crate::register::atlas_fit::{DeformRecord, LevelSeconds, deform_atlas, fit_landmarks, place};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
     ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_landmarks_on_image,
     prompt_landmarks,
 };
-use crate::register::rigid::RigidFit;
+use crate::register::rigid::{RigidFit, RigidRecord};
+use crate::report::metrics::{
+    CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
+};
 use crate::report::{Accuracy, CaseReportInput, case_report_html};
 use crate::{Error, progress};
 
@@ -57,7 +64,7 @@ pub struct RunOptions {
 /// What a finished run reports.
 #[derive(Debug, Clone)]
 pub struct RunSummary {
-    pub metrics: Value,
+    pub metrics: CaseMetrics,
     /// Seconds per step: the stages that ran, then "validate" (when on) and "report".
     pub timings: Vec<(&'static str, f64)>,
     pub out: PathBuf,
@@ -107,12 +114,14 @@ fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
     out.join("stages").join(stage.artefact())
 }
 
-fn write_json_file(path: &Path, value: &Value) -> Result<(), Error> {
+/// Writes `value` as pretty JSON, atomically.
+fn write_record<T: Serialize>(path: &Path, value: &T) -> Result<(), Error> {
     let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
     Ok(write_atomic(path, text.as_bytes())?)
 }
 
-fn read_artefact(out: &Path, stage: Stage, from: Stage) -> Result<Value, Error> {
+/// The artefact an earlier run's `stage` wrote, read back by the type that wrote it.
+fn read_record<T: DeserializeOwned>(out: &Path, stage: Stage, from: Stage) -> Result<T, Error> {
     let path = artefact_path(out, stage);
     let text = std::fs::read_to_string(&path).map_err(|e| {
         Error::Usage(format!(
@@ -128,6 +137,35 @@ fn read_artefact(out: &Path, stage: Stage, from: Stage) -> Result<Value, Error> 
             stage.name()
         ))
     })
+}
+
+/// The wall time of each step that ran, in order.
+#[derive(Default)]
+struct Clock(Vec<(&'static str, f64)>);
+
+impl Clock {
+    fn record(&mut self, step: &'static str, started: Instant) {
+        self.0.push((step, started.elapsed().as_secs_f64()));
+    }
+}
+
+/// Runs `stage` when the run starts at or before it (its artefact written, its time
+/// recorded), or reads the artefact an earlier run wrote.
+fn run_or_resume<T: Serialize + DeserializeOwned>(
+    out: &Path,
+    from: Stage,
+    stage: Stage,
+    clock: &mut Clock,
+    run: impl FnOnce() -> Result<T, Error>,
+) -> Result<T, Error> {
+    if from > stage {
+        return read_record(out, stage, from);
+    }
+    let started = Instant::now();
+    let value = run()?;
+    write_record(&artefact_path(out, stage), &value)?;
+    clock.record(stage.name(), started);
+    Ok(value)
 }
 
 /// The patient's landmarks: `--landmarks`, the case's file, or the prompt on a terminal.
@@ -181,88 +219,251 @@ fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-fn geometry_json(loaded: &LoadedImage, source: &Path) -> Value {
-    let v = &loaded.volume;
-    json!({
-        // a path that is not UTF-8 is written lossily (serialising it would fail)
-        "image": source.display().to_string(),
-        "format": loaded.info.format,
-        "dims": v.dims,
-        "spacing": v.spacing,
-        "origin": [v.origin.x, v.origin.y, v.origin.z],
-        "direction": v.direction_row_major(),
-        "laterality": loaded.info.laterality,
-        "series_uid_sha256": loaded.info.series_uid_sha256,
-    })
+/// The image as the later stages use it.
+struct Ingested {
+    loaded: LoadedImage,
+    record: ImageRecord,
+    /// The probe step: the smallest voxel spacing [mm].
+    step: f64,
 }
 
-fn points_json(l: &Landmarks) -> Value {
-    json!({
-        "umbo": [l.umbo.x, l.umbo.y, l.umbo.z],
-        "incudomalleolar": [l.incudomalleolar.x, l.incudomalleolar.y, l.incudomalleolar.z],
-        "incudostapedial": [l.incudostapedial.x, l.incudostapedial.y, l.incudostapedial.z],
-    })
+/// The landmarks stage's outcome: the side, the atlas mirrored to it, the patient's landmarks
+/// and what the checks found unusual.
+struct Placed {
+    side: Side,
+    side_source: &'static str,
+    atlas: Atlas,
+    patient: Landmarks,
+    warnings: Vec<LandmarkWarning>,
+}
+
+/// The deformable stage's outcome.
+struct Deformed {
+    nodes: Vec<Point3<f64>>,
+    record: DeformRecord,
+    /// Each level's wall time (only when the stage ran in this run).
+    level_seconds: Option<LevelSeconds>,
+}
+
+/// The score stage's outcome, when the case has a segmentation.
+struct Scored {
+    scores: Scores,
+    /// Scored in this run: each structure's deviation map and the segmentation read.
+    in_memory: Option<(BTreeMap<String, StructureScore>, Reference)>,
+}
+
+/// The export stage's record (`OUT/stages/export.json`): the files written under
+/// `OUT/registered/`.
+#[derive(Debug, Serialize, Deserialize)]
+struct ExportRecord {
+    files: Vec<String>,
 }
 
 /// Runs `case` through the pipeline.
 pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSummary, Error> {
     let out = &opts.out;
-    let mut timings: Vec<(Stage, f64)> = Vec::new();
     let started = Instant::now();
+    let mut clock = Clock::default();
     remove_previous_outputs(out)?;
 
-    progress::case_stage(&case.id, Stage::Ingest.name());
-    // ingest: always read (the later stages need the voxels); on resume, the image must be
-    // the one the earlier run saw
-    let t = Instant::now();
-    progress::log(format!("{}: ingest {}", case.id, case.image.display()));
-    let loaded = image::load(&case.image, None, &config.ingest)?;
-    let geometry = geometry_json(&loaded, &case.image);
-    if opts.from <= Stage::Ingest {
-        write_json_file(&artefact_path(out, Stage::Ingest), &geometry)?;
-    } else {
-        let before = read_artefact(out, Stage::Ingest, opts.from)?;
-        if before != geometry {
-            return Err(Error::Usage(format!(
-                "--from {}: the image differs from the one in {}; run from ingest",
-                opts.from.name(),
-                artefact_path(out, Stage::Ingest).display()
-            )));
-        }
-    }
-    let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
+    let ingested = ingest(case, opts, config, &mut clock)?;
+    let sampler = Sampler::new(&ingested.loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
             "{}: the image geometry is degenerate",
             case.image.display()
         ))
     })?;
+    let placed = landmarks(case, opts, config, &ingested, &sampler, &mut clock)?;
+    let fit = rigid(case, opts, config, &placed, &mut clock)?;
+    let rigid_nodes = place(&placed.atlas, &fit);
+    let deformed = deform(
+        case,
+        opts,
+        config,
+        &placed.atlas,
+        &rigid_nodes,
+        &sampler,
+        ingested.step,
+        &mut clock,
+    )?;
+    let scored = score_case(
+        case,
+        opts,
+        config,
+        &placed.atlas,
+        &rigid_nodes,
+        &deformed.nodes,
+        ingested.step,
+        &mut clock,
+    )?;
+    export(
+        case,
+        out,
+        &placed.atlas,
+        &deformed.nodes,
+        &scored,
+        &mut clock,
+    )?;
+    let validation = validate(
+        case,
+        out,
+        config,
+        &placed.atlas,
+        &deformed.nodes,
+        &mut clock,
+    )?;
+    let metrics = CaseMetrics {
+        case: case.id.clone(),
+        side: placed.side,
+        side_source: placed.side_source.to_string(),
+        atlas: placed.atlas.name.clone(),
+        image: ingested.record.clone(),
+        landmarks: LandmarkMetrics {
+            patient: (&placed.patient).into(),
+            registered: (&placed.atlas.landmark_positions(&deformed.nodes)).into(),
+        },
+        landmark_warnings: placed.warnings.iter().map(Into::into).collect(),
+        rigid: (&fit).into(),
+        deform: deformed.record.clone(),
+        scores: scored.as_ref().map(|s| s.scores.clone()),
+        mechanics: validation.as_ref().map(|v| MechanicsOutcome {
+            passed: v.verdict.passed,
+            gates: v.verdict.gates.len(),
+            failed: v.verdict.failures().map(|g| g.name.clone()).collect(),
+        }),
+    };
+    write_record(&out.join("metrics.json"), &metrics)?;
+    let report = CaseReportInput {
+        case_id: &case.id,
+        image: &ingested.loaded,
+        sampler: &sampler,
+        side: placed.side,
+        side_source: placed.side_source,
+        atlas: &placed.atlas,
+        fit: &fit,
+        landmark_warnings: &placed.warnings,
+        rigid_nodes: &rigid_nodes,
+        registered_nodes: &deformed.nodes,
+        deform: &deformed.record,
+        accuracy: match &scored {
+            None => Accuracy::NoSegmentation,
+            Some(Scored {
+                scores,
+                in_memory: None,
+            }) => Accuracy::Resumed { scores },
+            Some(Scored {
+                scores,
+                in_memory: Some((per_structure, reference)),
+            }) => Accuracy::Scored {
+                scores,
+                deviation: per_structure
+                    .iter()
+                    .map(|(name, s)| (name.as_str(), (&s.surface, s.deviation.as_slice())))
+                    .collect(),
+                reference: &reference.surfaces,
+            },
+        },
+        mechanics: validation.as_ref(),
+        timings: &clock.0,
+        total_seconds: started.elapsed().as_secs_f64(),
+    };
+    let t = Instant::now();
+    report_case(out, &report)?;
+    // the package's own time is in package.log.json, written with it
+    clock.record("report", t);
+    write_timings(out, &clock, started, deformed.level_seconds)?;
+    // keep last: a package is present only for a case that finished
+    let patient = match opts.keep_phi {
+        true => read_patient_identity(&case.image)?,
+        false => None,
+    };
+    let package = PackageInput {
+        atlas: &placed.atlas,
+        nodes: &deformed.nodes,
+        fit: &fit,
+        deform: &deformed.record,
+        config,
+        series_uid_sha256: ingested.loaded.info.series_uid_sha256.clone(),
+        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        mechanics: validation.as_ref().map(MechanicsSummary::of),
+        patient,
+    };
+    write_package_logged(out, &package)?;
+    Ok(RunSummary {
+        metrics,
+        timings: clock.0,
+        out: out.clone(),
+    })
+}
+
+/// Ingest: always read (the later stages need the voxels); on resume, the image must be the
+/// one the earlier run saw.
+fn ingest(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    clock: &mut Clock,
+) -> Result<Ingested, Error> {
+    progress::case_stage(&case.id, Stage::Ingest.name());
+    let t = Instant::now();
+    progress::log(format!("{}: ingest {}", case.id, case.image.display()));
+    let loaded = image::load(&case.image, None, &config.ingest)?;
+    let record = ImageRecord::of(&loaded, &case.image);
+    if opts.from <= Stage::Ingest {
+        write_record(&artefact_path(&opts.out, Stage::Ingest), &record)?;
+    } else {
+        let before: ImageRecord = read_record(&opts.out, Stage::Ingest, opts.from)?;
+        if before != record {
+            return Err(Error::Usage(format!(
+                "--from {}: the image differs from the one in {}; run from ingest",
+                opts.from.name(),
+                artefact_path(&opts.out, Stage::Ingest).display()
+            )));
+        }
+    }
     let step = loaded
         .volume
         .spacing
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    timings.push((Stage::Ingest, t.elapsed().as_secs_f64()));
+    clock.record(Stage::Ingest.name(), t);
+    Ok(Ingested {
+        loaded,
+        record,
+        step,
+    })
+}
 
+/// Landmarks and side: read (or prompted), checked against the image, the atlas mirrored to
+/// the side.
+fn landmarks(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    ingested: &Ingested,
+    sampler: &Sampler,
+    clock: &mut Clock,
+) -> Result<Placed, Error> {
     progress::case_stage(&case.id, Stage::Landmarks.name());
-    // landmarks and side
+    let out = &opts.out;
     let t = Instant::now();
     let file = if opts.from <= Stage::Landmarks {
-        landmark_input(case, opts, &sampler)?
+        landmark_input(case, opts, sampler)?
     } else {
         read_landmarks(&artefact_path(out, Stage::Landmarks))?
     };
-    let (side, side_source, side_warning) = side_of(opts, &file, &loaded)?;
+    let (side, side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
     let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
     let patient = file.landmarks;
     let image_check = ImageCheck {
         atlas: &atlas,
-        sampler: &sampler,
-        step_mm: step,
+        sampler,
+        step_mm: ingested.step,
         probe: &config.deform.probe,
         with_scale: config.rigid.with_scale,
     };
-    let mut landmark_warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
+    let mut warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
         .map_err(|e| {
             // name the file to correct (none for landmarks typed at the prompt)
             let path = match opts.from <= Stage::Landmarks {
@@ -277,8 +478,8 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
                 None => e,
             }
         })?;
-    landmark_warnings.extend(side_warning);
-    for warning in &landmark_warnings {
+    warnings.extend(side_warning);
+    for warning in &warnings {
         progress::log(format!("{}: landmark warning: {warning}", case.id));
     }
     if opts.from <= Stage::Landmarks {
@@ -286,7 +487,7 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             &artefact_path(out, Stage::Landmarks),
             write_json(&patient, Some(side)).as_bytes(),
         )?;
-        timings.push((Stage::Landmarks, t.elapsed().as_secs_f64()));
+        clock.record(Stage::Landmarks.name(), t);
     }
     progress::log(format!(
         "{}: {} ear (from the {side_source}), atlas '{}'",
@@ -294,80 +495,82 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         side.as_str(),
         atlas.name
     ));
+    Ok(Placed {
+        side,
+        side_source,
+        atlas,
+        patient,
+        warnings,
+    })
+}
 
+/// The rigid (or similarity) fit of the atlas landmarks onto the patient's.
+fn rigid(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    placed: &Placed,
+    clock: &mut Clock,
+) -> Result<RigidFit, Error> {
     progress::case_stage(&case.id, Stage::Rigid.name());
-    // rigid
-    let t = Instant::now();
-    let fit: RigidFit = if opts.from <= Stage::Rigid {
-        let fit = fit_landmarks(&atlas, &patient, config.rigid.with_scale).ok_or_else(|| {
+    let with_scale = config.rigid.with_scale;
+    let record: RigidRecord = run_or_resume(&opts.out, opts.from, Stage::Rigid, clock, || {
+        let fit = fit_landmarks(&placed.atlas, &placed.patient, with_scale).ok_or_else(|| {
             Error::Usage("the landmarks are degenerate: no rigid fit exists".into())
         })?;
-        let value = json!({
-            "atlas_to_patient": fit.transform,
-            "matrix4": fit.transform.matrix4().transpose().as_slice(),
-            "residuals_mm": fit.residuals_mm,
-            "rms_mm": fit.rms_mm,
-            "with_scale": config.rigid.with_scale,
-        });
-        write_json_file(&artefact_path(out, Stage::Rigid), &value)?;
-        timings.push((Stage::Rigid, t.elapsed().as_secs_f64()));
-        fit
-    } else {
-        let v = read_artefact(out, Stage::Rigid, opts.from)?;
-        RigidFit {
-            transform: serde_json::from_value(v["atlas_to_patient"].clone())
-                .map_err(|e| Error::Usage(format!("stages/rigid.json: atlas_to_patient: {e}")))?,
-            residuals_mm: serde_json::from_value(v["residuals_mm"].clone()).unwrap_or_default(),
-            rms_mm: v["rms_mm"].as_f64().unwrap_or(f64::NAN),
-        }
-    };
+        Ok(RigidRecord::of(&fit, with_scale))
+    })?;
+    let fit = record.fit();
     progress::log(format!(
         "{}: rigid fit, scale {:.3}, landmark RMS {:.3} mm",
         case.id, fit.transform.scale, fit.rms_mm
     ));
-    let placed = place(&atlas, &fit);
+    Ok(fit)
+}
 
+/// The deformable stage (per-ossicle poses, FEM levels, surface level, eardrum); on resume,
+/// its record and `stages/deform.vtu`.
+#[allow(clippy::too_many_arguments)]
+fn deform(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    atlas: &Atlas,
+    rigid_nodes: &[Point3<f64>],
+    sampler: &Sampler,
+    step: f64,
+    clock: &mut Clock,
+) -> Result<Deformed, Error> {
     progress::case_stage(&case.id, Stage::Deform.name());
-    // deform
-    let t = Instant::now();
-    let deform_vtu = out.join("stages").join("deform.vtu");
-    // each level's wall time, for timings.json (the stage's record stays deterministic)
+    let deform_vtu = opts.out.join("stages").join("deform.vtu");
+    let mut resumed = true;
     let mut level_seconds = None;
-    let (nodes, deform_json): (Vec<Point3<f64>>, Value) = if opts.from <= Stage::Deform {
+    let mut nodes = Vec::new();
+    let record: DeformRecord = run_or_resume(&opts.out, opts.from, Stage::Deform, clock, || {
+        resumed = false;
         let registered = deform_atlas(
-            &atlas,
-            &placed,
-            &sampler,
+            atlas,
+            rigid_nodes,
+            sampler,
             step,
             &config.articulate,
             &config.deform,
             &config.refine,
         )?;
-        let (result, eardrum) = (registered.deform, registered.eardrum);
-        if let DeformStatus::InversionGuard { message } = &result.status {
+        if let DeformStatus::InversionGuard { message } = &registered.deform.status {
             progress::log(format!(
                 "{}: deformable stage stopped at its last valid state: {message}",
                 case.id
             ));
         }
-        let value = json!({
-            "articulation": registered.articulation,
-            "status": result.status,
-            "iterations": result.history.len(),
-            "history": result.history,
-            "refinement": registered.refinement,
-            "eardrum": eardrum,
-            "probe_step_mm": step,
-        });
         level_seconds = Some(registered.seconds);
         let mut mesh = atlas.mesh.clone();
-        mesh.tets.nodes = result.positions.clone();
+        mesh.tets.nodes = registered.deform.positions.clone();
         write_vtu(&deform_vtu, &mesh, &[], VtuEncoding::Base64)?;
-        write_json_file(&artefact_path(out, Stage::Deform), &value)?;
-        timings.push((Stage::Deform, t.elapsed().as_secs_f64()));
-        (result.positions, value)
-    } else {
-        let value = read_artefact(out, Stage::Deform, opts.from)?;
+        nodes = registered.deform.positions.clone();
+        Ok(registered.record(step))
+    })?;
+    if resumed {
         let (mesh, _) = read_vtu(&deform_vtu)?;
         if mesh.tets.nodes.len() != atlas.nodes().len() {
             return Err(Error::Usage(format!(
@@ -377,36 +580,83 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
                 atlas.nodes().len()
             )));
         }
-        (mesh.tets.nodes, value)
-    };
+        nodes = mesh.tets.nodes;
+    }
+    Ok(Deformed {
+        nodes,
+        record,
+        level_seconds,
+    })
+}
 
+/// Scores the rigid and the registered atlas against the case's segmentation, when it has one.
+#[allow(clippy::too_many_arguments)]
+fn score_case(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    atlas: &Atlas,
+    rigid_nodes: &[Point3<f64>],
+    nodes: &[Point3<f64>],
+    step: f64,
+    clock: &mut Clock,
+) -> Result<Option<Scored>, Error> {
     progress::case_stage(&case.id, Stage::Score.name());
-    // score (with a segmentation)
-    let t = Instant::now();
-    let mut reference = None;
-    let scores = match &case.segmentation {
-        Some(seg) if opts.from <= Stage::Score => {
-            let reference = reference.insert(Reference::load(seg, &config.ingest)?);
-            let rigid = score(&atlas, &placed, reference, step)?;
-            let registered = score(&atlas, &nodes, reference, step)?;
-            let value = scores_json(&rigid, &registered);
-            write_json_file(&artefact_path(out, Stage::Score), &value)?;
-            timings.push((Stage::Score, t.elapsed().as_secs_f64()));
-            Some((value, registered))
-        }
-        Some(_) => Some((
-            read_artefact(out, Stage::Score, opts.from)?,
-            Default::default(),
-        )),
-        None => None,
+    let Some(segmentation) = &case.segmentation else {
+        return Ok(None);
     };
+    let mut in_memory = None;
+    let scores: Scores = run_or_resume(&opts.out, opts.from, Stage::Score, clock, || {
+        let reference = Reference::load(segmentation, &config.ingest)?;
+        let rigid = score(atlas, rigid_nodes, &reference, step)?;
+        let registered = score(atlas, nodes, &reference, step)?;
+        let scores = scores_of(&rigid, &registered);
+        in_memory = Some((registered, reference));
+        Ok(scores)
+    })?;
+    Ok(Some(Scored { scores, in_memory }))
+}
 
+/// Per structure: the rigid-only and the registered surface distances, and the MASD
+/// improvement of the deformable stage.
+fn scores_of(
+    rigid: &BTreeMap<String, StructureScore>,
+    registered: &BTreeMap<String, StructureScore>,
+) -> Scores {
+    registered
+        .iter()
+        .map(|(name, r)| {
+            let before = rigid.get(name).map(|s| s.distances.clone());
+            let improvement = before.as_ref().map(|b| 1.0 - r.distances.masd / b.masd);
+            let metrics = StructureMetrics {
+                registered: r.distances.clone(),
+                rigid: before,
+                masd_improvement: improvement,
+            };
+            (name.clone(), metrics)
+        })
+        .collect()
+}
+
+/// The registered atlas's surfaces, volume and landmarks, and each scored structure's
+/// deviation map, under `OUT/registered/`.
+fn export(
+    case: &Case,
+    out: &Path,
+    atlas: &Atlas,
+    nodes: &[Point3<f64>],
+    scored: &Option<Scored>,
+    clock: &mut Clock,
+) -> Result<(), Error> {
     progress::case_stage(&case.id, Stage::Export.name());
-    // export
     let t = Instant::now();
     let registered_dir = out.join("registered");
-    let mut files = export_atlas(&atlas, &nodes, &registered_dir)?.files;
-    if let Some((_, per_structure)) = &scores {
+    let mut files = export_atlas(atlas, nodes, &registered_dir)?.files;
+    if let Some(Scored {
+        in_memory: Some((per_structure, _)),
+        ..
+    }) = scored
+    {
         for (name, s) in per_structure {
             let path = registered_dir.join("deviation").join(format!("{name}.ply"));
             let attrs = VertexAttributes {
@@ -417,168 +667,74 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
             files.push(path);
         }
     }
-    write_json_file(
-        &artefact_path(out, Stage::Export),
-        &json!({ "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>() }),
-    )?;
-    timings.push((Stage::Export, t.elapsed().as_secs_f64()));
+    let record = ExportRecord {
+        files: files.iter().map(|f| f.display().to_string()).collect(),
+    };
+    write_record(&artefact_path(out, Stage::Export), &record)?;
+    clock.record(Stage::Export.name(), t);
+    Ok(())
+}
 
-    let mut stage_times: Vec<(&'static str, f64)> =
-        timings.iter().map(|(s, t)| (s.name(), *t)).collect();
-    let mechanics_path = out.join("mechanics.json");
-    let validation = if config.validate.enabled {
-        progress::case_stage(&case.id, "validate");
-        let t = Instant::now();
-        let v = validate_registered(&atlas, &nodes, &config.validate)?;
-        write_json_file(
-            &mechanics_path,
-            &serde_json::to_value(&v).unwrap_or_default(),
-        )?;
-        progress::log(format!(
-            "{}: mechanics against the atlas: {} ({} of {} gates failed)",
-            case.id,
-            if v.verdict.passed { "pass" } else { "FAIL" },
-            v.verdict.failures().count(),
-            v.verdict.gates.len()
-        ));
-        if let Some(why) = &v.mechanics.udsp.failure {
-            progress::log(format!("{}: static pressure stopped short: {why}", case.id));
-        }
-        stage_times.push(("validate", t.elapsed().as_secs_f64()));
-        Some(v)
-    } else {
+/// The registered package's mechanics against the atlas (`mechanics.json`), when
+/// `[validate]` is on.
+fn validate(
+    case: &Case,
+    out: &Path,
+    config: &Config,
+    atlas: &Atlas,
+    nodes: &[Point3<f64>],
+    clock: &mut Clock,
+) -> Result<Option<Validation>, Error> {
+    if !config.validate.enabled {
         // an earlier run's verdict was removed with its other outputs at the start
-        None
-    };
-    let report = CaseReportInput {
-        case_id: &case.id,
-        image: &loaded,
-        sampler: &sampler,
-        side,
-        side_source,
-        atlas: &atlas,
-        fit: &fit,
-        landmark_warnings: &landmark_warnings,
-        rigid_nodes: &placed,
-        registered_nodes: &nodes,
-        deform: &deform_json,
-        accuracy: match (&scores, &reference) {
-            (None, _) => Accuracy::NoSegmentation,
-            (Some((value, _)), None) => Accuracy::Resumed { scores: value },
-            (Some((value, per_structure)), Some(reference)) => Accuracy::Scored {
-                scores: value,
-                deviation: per_structure
-                    .iter()
-                    .map(|(name, s)| (name.as_str(), (&s.surface, s.deviation.as_slice())))
-                    .collect(),
-                reference: &reference.surfaces,
-            },
-        },
-        mechanics: validation.as_ref(),
-        timings: &stage_times,
-        total_seconds: started.elapsed().as_secs_f64(),
-    };
-    let metrics = json!({
-        "case": case.id,
-        "side": side.as_str(),
-        "side_source": side_source,
-        "atlas": atlas.name,
-        "image": geometry,
-        "landmarks": {
-            "patient": points_json(&patient),
-            "registered": points_json(&atlas.landmark_positions(&nodes)),
-        },
-        "landmark_warnings": warnings_json(&landmark_warnings),
-        "rigid": {
-            "atlas_to_patient": fit.transform,
-            "scale": fit.transform.scale,
-            "residuals_mm": fit.residuals_mm,
-            "rms_mm": fit.rms_mm,
-        },
-        "deform": deform_json,
-        "scores": scores.as_ref().map(|(v, _)| v.clone()),
-        "mechanics": validation.as_ref().map(|v| json!({
-            "passed": v.verdict.passed,
-            "gates": v.verdict.gates.len(),
-            "failed": v.verdict.failures().map(|g| g.name.clone()).collect::<Vec<_>>(),
-        })),
-    });
-    write_json_file(&out.join("metrics.json"), &metrics)?;
+        return Ok(None);
+    }
+    progress::case_stage(&case.id, "validate");
     let t = Instant::now();
-    let report_path = out.join("report.html");
-    let html = case_report_html(&report).map_err(|source| Error::Report {
-        path: report_path.clone(),
+    let v = validate_registered(atlas, nodes, &config.validate)?;
+    write_record(&out.join("mechanics.json"), &v)?;
+    progress::log(format!(
+        "{}: mechanics against the atlas: {} ({} of {} gates failed)",
+        case.id,
+        if v.verdict.passed { "pass" } else { "FAIL" },
+        v.verdict.failures().count(),
+        v.verdict.gates.len()
+    ));
+    if let Some(why) = &v.mechanics.udsp.failure {
+        progress::log(format!("{}: static pressure stopped short: {why}", case.id));
+    }
+    clock.record("validate", t);
+    Ok(Some(v))
+}
+
+/// `report.html`.
+fn report_case(out: &Path, input: &CaseReportInput) -> Result<(), Error> {
+    let path = out.join("report.html");
+    let html = case_report_html(input).map_err(|source| Error::Report {
+        path: path.clone(),
         source,
     })?;
-    write_atomic(&report_path, html.as_bytes())?;
-    let mut timing_map = serde_json::Map::new();
-    for (name, secs) in &stage_times {
-        timing_map.insert((*name).into(), json!(secs));
-    }
-    // the package's own time is in package.log.json, written with it
-    stage_times.push(("report", t.elapsed().as_secs_f64()));
-    timing_map.insert("report".into(), json!(t.elapsed().as_secs_f64()));
-    timing_map.insert("total".into(), json!(started.elapsed().as_secs_f64()));
-    if let Some(levels) = level_seconds {
-        timing_map.insert("deform_levels".into(), json!(levels));
-    }
-    write_json_file(&out.join("timings.json"), &Value::Object(timing_map))?;
-    // keep last: a package is present only for a case that finished
-    let patient = match opts.keep_phi {
-        true => read_patient_identity(&case.image)?,
-        false => None,
-    };
-    let package = PackageInput {
-        atlas: &atlas,
-        nodes: &nodes,
-        fit: &fit,
-        deform: &deform_json,
-        config,
-        series_uid_sha256: loaded.info.series_uid_sha256.clone(),
-        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
-        mechanics: validation.as_ref().map(MechanicsSummary::of),
-        patient,
-    };
-    write_package_logged(out, &package)?;
-    Ok(RunSummary {
-        metrics,
-        timings: stage_times,
-        out: out.clone(),
-    })
+    write_atomic(&path, html.as_bytes())?;
+    Ok(())
 }
 
-/// The landmark checks' warnings: each typed (`kind` and its figures) with its message.
-fn warnings_json(warnings: &[LandmarkWarning]) -> Value {
-    warnings
-        .iter()
-        .map(|w| {
-            let mut value = serde_json::to_value(w).unwrap_or_default();
-            if let Value::Object(map) = &mut value {
-                map.insert("message".into(), json!(w.to_string()));
-            }
-            value
-        })
-        .collect()
-}
-
-/// Per structure: the rigid-only and the registered surface distances, and the MASD
-/// improvement of the deformable stage.
-fn scores_json(
-    rigid: &std::collections::BTreeMap<String, StructureScore>,
-    registered: &std::collections::BTreeMap<String, StructureScore>,
-) -> Value {
-    let mut map = serde_json::Map::new();
-    for (name, r) in registered {
-        let before = rigid.get(name).map(|s| &s.distances);
-        let improvement = before.map(|b| 1.0 - r.distances.masd / b.masd);
-        map.insert(
-            name.clone(),
-            json!({
-                "registered": r.distances,
-                "rigid": before,
-                "masd_improvement": improvement,
-            }),
+/// `timings.json`: seconds per step, the whole run, and each level of the deformable stage.
+fn write_timings(
+    out: &Path,
+    clock: &Clock,
+    started: Instant,
+    levels: Option<LevelSeconds>,
+) -> Result<(), Error> {
+    let mut timings = serde_json::Map::new();
+    for (name, secs) in &clock.0 {
+        timings.insert((*name).into(), (*secs).into());
+    }
+    timings.insert("total".into(), started.elapsed().as_secs_f64().into());
+    if let Some(levels) = levels {
+        timings.insert(
+            "deform_levels".into(),
+            serde_json::to_value(levels).unwrap_or_default(),
         );
     }
-    Value::Object(map)
+    write_record(&out.join("timings.json"), &timings)
 }

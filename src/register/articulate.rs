@@ -62,7 +62,7 @@ pub struct ArticulateConfig {
 }
 
 /// One ossicle's motion from the landmark placement.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct OssiclePose {
     pub part: Part,
     pub rotation_deg: f64,
@@ -70,7 +70,7 @@ pub struct OssiclePose {
 }
 
 /// What the stage did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Articulation {
     pub rounds: usize,
     /// Mean |offset| of the kept border points in the first and in the last round [mm].

@@ -8,10 +8,12 @@
 use std::time::Instant;
 
 use nalgebra::Point3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
-use super::deform::{DeformConfig, DeformError, DeformResult, DeformStatus, deform};
+use super::deform::{
+    DeformConfig, DeformError, DeformResult, DeformStatus, IterationStats, deform,
+};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::probes::probe_triangles;
 use super::refine::{RefineConfig, Refinement, refine};
@@ -74,6 +76,39 @@ pub struct Registered {
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
     pub seconds: LevelSeconds,
+}
+
+/// The deformable stage's record: `OUT/stages/deform.json`, `metrics.json`'s `deform`, read
+/// back by `run --from` and by the reports.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeformRecord {
+    /// Each ossicle's own pose (absent when `[articulate]` is off).
+    pub articulation: Option<Articulation>,
+    pub status: DeformStatus,
+    pub iterations: usize,
+    /// The FEM levels' iterations, in order.
+    pub history: Vec<IterationStats>,
+    /// The surface level after the FEM levels (absent when `[refine]` is off).
+    #[serde(default)]
+    pub refinement: Option<Refinement>,
+    pub eardrum: EardrumFit,
+    /// The probe step (the smallest voxel spacing) [mm].
+    pub probe_step_mm: f64,
+}
+
+impl Registered {
+    /// The record of this registration, probed with step `step` [mm].
+    pub fn record(&self, step: f64) -> DeformRecord {
+        DeformRecord {
+            articulation: self.articulation.clone(),
+            status: self.deform.status.clone(),
+            iterations: self.deform.history.len(),
+            history: self.deform.history.clone(),
+            refinement: self.refinement.clone(),
+            eardrum: self.eardrum,
+            probe_step_mm: step,
+        }
+    }
 }
 
 /// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and

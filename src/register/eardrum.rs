@@ -8,7 +8,7 @@
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::deform::{DeformConfig, ProbeKind, probe};
 use crate::atlas::{Atlas, Part};
@@ -21,7 +21,7 @@ const SMOOTHING_SWEEPS: usize = 600;
 const ROUNDS: usize = 3;
 
 /// What the eardrum fit did.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EardrumFit {
     /// Membrane nodes that belong to no tetrahedron (moved here).
     pub free_nodes: usize,

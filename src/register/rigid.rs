@@ -83,6 +83,40 @@ pub struct RigidFit {
     pub rms_mm: f64,
 }
 
+/// The rigid stage's record (`OUT/stages/rigid.json`): the fit, its matrix and whether it
+/// carried a scale.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RigidRecord {
+    pub atlas_to_patient: SimilarityTransform,
+    /// The 4x4 homogeneous matrix, row-major.
+    pub matrix4: Vec<f64>,
+    pub residuals_mm: Vec<f64>,
+    pub rms_mm: f64,
+    pub with_scale: bool,
+}
+
+impl RigidRecord {
+    /// The record of `fit`.
+    pub fn of(fit: &RigidFit, with_scale: bool) -> RigidRecord {
+        RigidRecord {
+            atlas_to_patient: fit.transform,
+            matrix4: fit.transform.matrix4().transpose().as_slice().to_vec(),
+            residuals_mm: fit.residuals_mm.clone(),
+            rms_mm: fit.rms_mm,
+            with_scale,
+        }
+    }
+
+    /// The fit it records.
+    pub fn fit(&self) -> RigidFit {
+        RigidFit {
+            transform: self.atlas_to_patient,
+            residuals_mm: self.residuals_mm.clone(),
+            rms_mm: self.rms_mm,
+        }
+    }
+}
+
 /// Fits `target ≈ T(source)` in the least-squares sense, with isotropic scale when
 /// `with_scale`. `None` for fewer than three points or a degenerate (collinear) set.
 pub fn fit_similarity(

@@ -1,27 +1,127 @@
-//! The parts of a case's `metrics.json` (as `run` writes it) that the reports read, typed:
-//! the per-structure surface distances of the rigid fit and of the registration, the
-//! deformable stage's status and convergence history, and the landmark checks' warnings. Also the registration targets the
-//! reports compare against (mechanics-metrics.md §0.2, "proposed registration targets":
-//! MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle).
+//! A case's `metrics.json`, typed: `run` writes it from these types and the reports (and
+//! `--json`, and the cohort summary) read it through them. Also the registration targets the
+//! reports compare against (MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle; docs/registration.md).
 
 use std::collections::BTreeMap;
 
-use serde::Deserialize;
-use serde_json::Value;
+use serde::{Deserialize, Serialize};
 
-use super::error::ReportError;
 use crate::atlas::Part;
+use crate::ear::{Landmarks, Side};
+use crate::image::ImageRecord;
 use crate::meshdev::SurfaceDistances;
+use crate::register::atlas_fit::DeformRecord;
+use crate::register::deform::{DeformStatus, IterationStats};
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
+use crate::register::rigid::{RigidFit, SimilarityTransform};
 
-/// Target MASD per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target MASD per ossicle [mm].
 pub const MASD_TARGET_MM: f64 = 0.2;
-/// Target HD95 per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target HD95 per ossicle [mm].
 pub const HD95_TARGET_MM: f64 = 0.5;
 
+/// A case's `metrics.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaseMetrics {
+    pub case: String,
+    pub side: Side,
+    /// Where the side came from ("--side", "landmark file", "DICOM laterality").
+    pub side_source: String,
+    /// The atlas's name.
+    pub atlas: String,
+    pub image: ImageRecord,
+    pub landmarks: LandmarkMetrics,
+    /// What the landmark checks found unusual but possible.
+    #[serde(default)]
+    pub landmark_warnings: Vec<WarningRecord>,
+    pub rigid: RigidMetrics,
+    pub deform: DeformRecord,
+    /// Per structure, when the case has a segmentation (the score stage's record).
+    pub scores: Option<Scores>,
+    /// The package's mechanics against the atlas, when validated.
+    pub mechanics: Option<MechanicsOutcome>,
+}
+
+/// The score stage's record (`OUT/stages/score.json`, `metrics.json`'s `scores`): each
+/// structure's distances by name.
+pub type Scores = BTreeMap<String, StructureMetrics>;
+
+/// The patient's landmarks and the registered atlas's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkMetrics {
+    pub patient: LandmarkPoints,
+    pub registered: LandmarkPoints,
+}
+
+/// Three landmarks as `[x, y, z]` (LPS mm) by name.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkPoints {
+    pub umbo: [f64; 3],
+    pub incudomalleolar: [f64; 3],
+    pub incudostapedial: [f64; 3],
+}
+
+impl From<&Landmarks> for LandmarkPoints {
+    fn from(l: &Landmarks) -> LandmarkPoints {
+        let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
+        LandmarkPoints {
+            umbo: xyz(&l.umbo),
+            incudomalleolar: xyz(&l.incudomalleolar),
+            incudostapedial: xyz(&l.incudostapedial),
+        }
+    }
+}
+
+/// A landmark warning (its `kind` and figures) with its message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WarningRecord {
+    #[serde(flatten)]
+    pub warning: LandmarkWarning,
+    pub message: String,
+}
+
+impl From<&LandmarkWarning> for WarningRecord {
+    fn from(w: &LandmarkWarning) -> WarningRecord {
+        WarningRecord {
+            warning: w.clone(),
+            message: w.to_string(),
+        }
+    }
+}
+
+/// The rigid fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RigidMetrics {
+    pub atlas_to_patient: SimilarityTransform,
+    pub scale: f64,
+    pub residuals_mm: Vec<f64>,
+    pub rms_mm: f64,
+}
+
+impl From<&RigidFit> for RigidMetrics {
+    fn from(fit: &RigidFit) -> RigidMetrics {
+        RigidMetrics {
+            atlas_to_patient: fit.transform,
+            scale: fit.transform.scale,
+            residuals_mm: fit.residuals_mm.clone(),
+            rms_mm: fit.rms_mm,
+        }
+    }
+}
+
+/// The mechanical verdict in brief (`mechanics.json` holds the whole validation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MechanicsOutcome {
+    pub passed: bool,
+    /// How many gates were checked.
+    pub gates: usize,
+    /// The names of the failed gates.
+    pub failed: Vec<String>,
+}
+
 /// One structure's scores as `metrics.json` holds them under `scores.NAME`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StructureMetrics {
     pub registered: SurfaceDistances,
     /// The rigid fit alone (absent when only the registration was scored).
@@ -35,33 +135,6 @@ impl StructureMetrics {
     pub fn meets_targets(&self) -> bool {
         self.registered.masd <= MASD_TARGET_MM && self.registered.hd95 <= HD95_TARGET_MM
     }
-}
-
-fn parse<T: serde::de::DeserializeOwned>(
-    value: &Value,
-    case: &str,
-    field: &str,
-    expected: &'static str,
-) -> Result<T, ReportError> {
-    T::deserialize(value).map_err(|e| ReportError::Metrics {
-        case: case.to_string(),
-        field: field.to_string(),
-        expected,
-        message: e.to_string(),
-    })
-}
-
-/// The `scores` object of `metrics.json` (also the score stage's artefact), by structure.
-pub fn parse_scores(
-    scores: &Value,
-    case: &str,
-) -> Result<BTreeMap<String, StructureMetrics>, ReportError> {
-    parse(
-        scores,
-        case,
-        "scores",
-        "an object of per-structure {registered, rigid, masd_improvement} surface distances",
-    )
 }
 
 /// The structures of `scores` in anatomical order (malleus, incus, stapes, eardrum), then any
@@ -80,31 +153,7 @@ pub fn anatomical_order(
     out
 }
 
-/// One iteration of the deformable stage's history.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-pub struct Iteration {
-    pub iteration: usize,
-    pub mean_offset_mm: f64,
-    pub p99_update_mm: f64,
-}
-
-#[derive(Deserialize)]
-struct Status {
-    status: String,
-    message: Option<String>,
-    reason: Option<String>,
-    mean_offset_mm: Option<f64>,
-}
-
-#[derive(Deserialize)]
-struct DeformDocument {
-    status: Status,
-    history: Vec<Iteration>,
-    #[serde(default)]
-    refinement: Option<Refinement>,
-}
-
-/// The deformable stage as its artefact (and `metrics.json`'s `deform`) records it.
+/// The deformable stage as the reports show it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeformSummary {
     /// "converged", "max_iterations" or "inversion_guard", with the guard's message.
@@ -114,45 +163,35 @@ pub struct DeformSummary {
     /// [mm] (absent in records made before the stop reason was recorded).
     pub reason: Option<String>,
     pub mean_offset_mm: Option<f64>,
-    pub history: Vec<Iteration>,
+    pub history: Vec<IterationStats>,
     /// The surface level after the FEM levels (absent when it was off, or in records made
     /// before it existed).
     pub refinement: Option<Refinement>,
 }
 
-/// Reads the deformable stage's record.
-pub fn parse_deform(deform: &Value, case: &str) -> Result<DeformSummary, ReportError> {
-    let doc: DeformDocument = parse(
-        deform,
-        case,
-        "deform",
-        "the deformable stage's record {status: {status}, history: [...]}",
-    )?;
-    Ok(DeformSummary {
-        status: doc.status.status,
-        message: doc.status.message,
-        reason: doc.status.reason,
-        mean_offset_mm: doc.status.mean_offset_mm,
-        history: doc.history,
-        refinement: doc.refinement,
-    })
-}
-
-/// The landmark checks' warnings as `metrics.json` holds them under `landmark_warnings` (each
-/// with its `kind`, its figures and a `message`); none when the field is absent (a run before
-/// the checks warned).
-pub fn parse_landmark_warnings(
-    metrics: &Value,
-    case: &str,
-) -> Result<Vec<LandmarkWarning>, ReportError> {
-    match metrics.get("landmark_warnings") {
-        None | Some(Value::Null) => Ok(Vec::new()),
-        Some(w) => parse(
-            w,
-            case,
-            "landmark_warnings",
-            "a list of {kind, ...figures, message} landmark warnings",
-        ),
+impl DeformSummary {
+    /// The summary of `record`.
+    pub fn of(record: &DeformRecord) -> DeformSummary {
+        let (message, reason, mean_offset_mm) = match &record.status {
+            DeformStatus::Converged {
+                reason,
+                mean_offset_mm,
+            } => (
+                None,
+                Some(reason.as_str().to_string()),
+                Some(*mean_offset_mm),
+            ),
+            DeformStatus::MaxIterations => (None, None, None),
+            DeformStatus::InversionGuard { message } => (Some(message.clone()), None, None),
+        };
+        DeformSummary {
+            status: record.status.name().to_string(),
+            message,
+            reason,
+            mean_offset_mm,
+            history: record.history.clone(),
+            refinement: record.refinement.clone(),
+        }
     }
 }
 
@@ -160,7 +199,7 @@ pub fn parse_landmark_warnings(
 /// (ASSD, RMS and the MeshDev mean are MASD + 0.001, 0.002, 0.003; HD and the MeshDev max are
 /// HD95 + 0.3 and + 0.4).
 #[cfg(test)]
-pub(crate) fn distances_json(masd: f64, hd95: f64, bias: f64, dice: f64) -> Value {
+pub(crate) fn distances_json(masd: f64, hd95: f64, bias: f64, dice: f64) -> serde_json::Value {
     let directed = serde_json::json!({"samples": 10, "area_mm2": 5.0, "mean": masd,
         "rms": masd, "max": hd95 + 0.3, "p95": hd95, "within_tolerance_mm2": 5.0 * dice});
     serde_json::json!({"masd": masd, "assd": masd + 0.001, "rms": masd + 0.002,
@@ -170,39 +209,86 @@ pub(crate) fn distances_json(masd: f64, hd95: f64, bias: f64, dice: f64) -> Valu
         "ref_to_test": directed})
 }
 
+/// A whole `metrics.json` for the reports' tests: a left ear whose rigid fit is the identity,
+/// a deformable stage that converged on a plateau, with `scores` and `mechanics` as given.
+#[cfg(test)]
+pub(crate) fn case_metrics(
+    case: &str,
+    scores: serde_json::Value,
+    mechanics: serde_json::Value,
+) -> CaseMetrics {
+    let points = serde_json::json!({"umbo": [0.0, 0.0, 0.0], "incudomalleolar": [1.0, 0.0, 0.0],
+        "incudostapedial": [0.0, 1.0, 0.0]});
+    serde_json::from_value(serde_json::json!({
+        "case": case, "side": "left", "side_source": "landmark file", "atlas": "test",
+        "image": {"image": "x", "format": "dicom", "dims": [2, 2, 2], "spacing": [0.2, 0.2, 0.2],
+            "origin": [0.0, 0.0, 0.0], "direction": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            "laterality": null, "series_uid_sha256": null},
+        "landmarks": {"patient": points, "registered": points},
+        "landmark_warnings": [],
+        "rigid": {"atlas_to_patient": {"rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0]], "translation": [0.0, 0.0, 0.0], "scale": 1.0},
+            "scale": 1.0, "residuals_mm": [0.0, 0.0, 0.0], "rms_mm": 0.0},
+        "deform": {"articulation": null,
+            "status": {"status": "converged", "reason": "plateau", "mean_offset_mm": 0.05},
+            "iterations": 1,
+            "history": [{"iteration": 1, "borders_found": 3, "borders_used": 3,
+                "mean_offset_mm": 0.05, "max_update_mm": 0.01, "p99_update_mm": 0.01,
+                "spring_scale": 1.0}],
+            "refinement": null,
+            "eardrum": {"free_nodes": 0, "found_last_round": 0, "mean_offset_mm": 0.0},
+            "probe_step_mm": 0.2},
+        "scores": scores,
+        "mechanics": mechanics,
+    }))
+    .unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use serde_json::json;
 
     #[test]
-    fn reads_the_deform_record_and_names_a_bad_scores_field() {
-        let deform = json!({
+    fn a_warning_record_reads_back_with_its_kind_figures_and_message_in_order() {
+        let warning = LandmarkWarning::FlatTriangle {
+            height_mm: 1.2,
+            typical_min_mm: 1.5,
+            atlas_height_mm: Some(3.27),
+        };
+        let record = WarningRecord::from(&warning);
+        let text = serde_json::to_string(&record).unwrap();
+        assert!(
+            text.starts_with(r#"{"kind":"flat_triangle","height_mm":1.2"#),
+            "{text}"
+        );
+        assert!(
+            text.contains(r#","message":""#) && text.ends_with(r#""}"#),
+            "{text}"
+        );
+        let back: WarningRecord = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, record);
+        let bad = json!({"kind": "no_such_warning", "message": "?"});
+        assert!(serde_json::from_value::<WarningRecord>(bad).is_err());
+    }
+
+    #[test]
+    fn the_summary_of_a_guarded_deform_record_names_the_guard_and_its_message() {
+        let deform: DeformRecord = serde_json::from_value(json!({
+            "articulation": null,
             "status": {"status": "inversion_guard", "message": "step refused"},
             "iterations": 1,
-            "history": [{"iteration": 1, "mean_offset_mm": 0.2, "p99_update_mm": 0.1,
-                         "borders_found": 3, "max_update_mm": 0.3}],
-        });
-        let d = parse_deform(&deform, "c1").unwrap();
+            "history": [{"iteration": 1, "borders_found": 3, "borders_used": 3,
+                         "mean_offset_mm": 0.2, "max_update_mm": 0.3, "p99_update_mm": 0.1,
+                         "spring_scale": 1.0}],
+            "eardrum": {"free_nodes": 0, "found_last_round": 0, "mean_offset_mm": 0.0},
+            "probe_step_mm": 0.2,
+        }))
+        .unwrap();
+        let d = DeformSummary::of(&deform);
         assert_eq!(d.status, "inversion_guard");
         assert_eq!(d.message.as_deref(), Some("step refused"));
         assert_eq!(d.history[0].p99_update_mm, 0.1);
-        let warnings = json!({"landmark_warnings": [{"kind": "flat_triangle", "height_mm": 1.2,
-            "typical_min_mm": 1.5, "atlas_height_mm": 3.27, "message": "flat"}]});
-        assert_eq!(
-            parse_landmark_warnings(&warnings, "c1").unwrap(),
-            [LandmarkWarning::FlatTriangle {
-                height_mm: 1.2,
-                typical_min_mm: 1.5,
-                atlas_height_mm: Some(3.27)
-            }]
-        );
-        assert_eq!(parse_landmark_warnings(&json!({}), "c1").unwrap(), []);
-        let bad = json!({"landmark_warnings": [{"kind": "no_such_warning"}]});
-        let text = parse_landmark_warnings(&bad, "c1").unwrap_err().to_string();
-        assert!(text.contains("landmark_warnings"), "{text}");
-        let err = parse_scores(&json!({"malleus": {"registered": 3}}), "c1").unwrap_err();
-        let text = err.to_string();
-        assert!(text.contains("c1") && text.contains("scores"), "{text}");
+        assert_eq!(d.refinement, None);
     }
 }

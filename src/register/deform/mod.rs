@@ -84,7 +84,7 @@ pub struct ProbeTriangle {
 }
 
 /// One outer iteration, for the convergence history.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct IterationStats {
     pub iteration: usize,
     /// Triangles whose probe found a boundary.
@@ -103,7 +103,7 @@ pub struct IterationStats {
 }
 
 /// Why a converged stage stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
     /// The mean border offset stopped falling (by 2 % over 3 iterations): the borders the
@@ -115,8 +115,18 @@ pub enum StopReason {
     Balance,
 }
 
+impl StopReason {
+    /// The name `metrics.json` records.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StopReason::Plateau => "plateau",
+            StopReason::Balance => "balance",
+        }
+    }
+}
+
 /// How the stage ended.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "status", rename_all = "snake_case")]
 pub enum DeformStatus {
     Converged {
@@ -129,6 +139,17 @@ pub enum DeformStatus {
     InversionGuard {
         message: String,
     },
+}
+
+impl DeformStatus {
+    /// The name the records use ("converged", "max_iterations", "inversion_guard").
+    pub fn name(&self) -> &'static str {
+        match self {
+            DeformStatus::Converged { .. } => "converged",
+            DeformStatus::MaxIterations => "max_iterations",
+            DeformStatus::InversionGuard { .. } => "inversion_guard",
+        }
+    }
 }
 
 /// The result of the deformable stage.

@@ -11,7 +11,6 @@ use std::collections::BTreeMap;
 
 use nalgebra::Point3;
 use plotters::style::RGBColor;
-use serde_json::Value;
 
 mod accuracy;
 mod mechanics;
@@ -23,7 +22,7 @@ use summary::{summary, verdict};
 
 use super::error::ReportError;
 use super::html::{Figure, FigureContent, Page};
-use super::metrics::{DeformSummary, parse_deform, parse_scores};
+use super::metrics::{DeformSummary, Scores};
 use super::plot::{Series, line_chart_svg};
 use super::slices::{
     OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR, overlay_figures,
@@ -33,6 +32,7 @@ use crate::ear::Side;
 use crate::image::{LoadedImage, Sampler};
 use crate::mechanics::Validation;
 use crate::mesh::TriMesh;
+use crate::register::atlas_fit::DeformRecord;
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::rigid::RigidFit;
 
@@ -42,11 +42,11 @@ pub enum Accuracy<'a> {
     NoSegmentation,
     /// `run --from` started after the score stage: the scores come from the earlier run's
     /// artefact; the per-vertex deviations and the segmentation's surfaces are not in memory.
-    Resumed { scores: &'a Value },
+    Resumed { scores: &'a Scores },
     /// Scored in this run.
     Scored {
-        /// The `scores` object of `metrics.json`.
-        scores: &'a Value,
+        /// The score stage's record.
+        scores: &'a Scores,
         /// Per scored structure: the registered surface that was scored and the signed
         /// distance of each of its vertices [mm].
         deviation: BTreeMap<&'a str, (&'a TriMesh, &'a [f64])>,
@@ -70,8 +70,8 @@ pub struct CaseReportInput<'a> {
     /// Atlas nodes after the rigid fit and after the deformable registration.
     pub rigid_nodes: &'a [Point3<f64>],
     pub registered_nodes: &'a [Point3<f64>],
-    /// The deformable stage's record (`metrics.json`'s `deform`).
-    pub deform: &'a Value,
+    /// The deformable stage's record.
+    pub deform: &'a DeformRecord,
     pub accuracy: Accuracy<'a>,
     /// The package's mechanical validation against the atlas, when it ran.
     pub mechanics: Option<&'a Validation>,
@@ -94,17 +94,15 @@ fn surfaces(atlas: &Atlas, nodes: &[Point3<f64>]) -> BTreeMap<String, TriMesh> {
 
 /// The page as one HTML document.
 pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> {
-    let deform = parse_deform(input.deform, input.case_id)?;
+    let deform = DeformSummary::of(input.deform);
     let scores = match &input.accuracy {
         Accuracy::NoSegmentation => None,
-        Accuracy::Resumed { scores } | Accuracy::Scored { scores, .. } => {
-            Some(parse_scores(scores, input.case_id)?)
-        }
+        Accuracy::Resumed { scores } | Accuracy::Scored { scores, .. } => Some(*scores),
     };
     let rigid = surfaces(input.atlas, input.rigid_nodes);
     let registered = surfaces(input.atlas, input.registered_nodes);
     let mut page = Page::new(&format!("otoatlas case report: {}", input.case_id));
-    verdict(&mut page, &deform, scores.as_ref());
+    verdict(&mut page, &deform, scores);
     match input.landmark_warnings.len() {
         0 => &mut page,
         n => page.paragraph(
@@ -134,7 +132,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
         };
     }
     summary(&mut page, input, &deform);
-    metrics_table(&mut page, input, scores.as_ref());
+    metrics_table(&mut page, input, scores);
 
     page.heading("Slice overlays");
     let reference = match &input.accuracy {

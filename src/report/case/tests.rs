@@ -10,6 +10,7 @@ use serde_json::{Value, json};
 use super::*;
 use crate::image::{ImageInfo, Volume};
 use crate::register::rigid::SimilarityTransform;
+use crate::report::metrics::Scores;
 use crate::report::metrics::distances_json;
 use crate::report::slices::OVERLAY_PIXELS;
 
@@ -20,8 +21,8 @@ struct Fixture {
     registered: Vec<Point3<f64>>,
     reference: BTreeMap<String, TriMesh>,
     deviation: BTreeMap<String, (TriMesh, Vec<f64>)>,
-    scores: Value,
-    deform: Value,
+    scores: Scores,
+    deform: DeformRecord,
     fit: RigidFit,
 }
 
@@ -73,7 +74,7 @@ fn fixture() -> Fixture {
         );
         reference.insert(part.name().to_string(), mesh);
     }
-    let scores = json!({
+    let scores: Scores = serde_json::from_value(json!({
         "malleus": {"registered": distances_json(0.045, 0.14, -0.012, 0.978),
                     "rigid": distances_json(0.15, 0.35, 0.084, 0.648), "masd_improvement": 0.7},
         "incus": {"registered": distances_json(0.033, 0.6, 0.007, 0.993),
@@ -82,13 +83,20 @@ fn fixture() -> Fixture {
                    "rigid": distances_json(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471},
         "eardrum": {"registered": distances_json(0.033, 0.137, 0.019, 0.974),
                     "rigid": null, "masd_improvement": null},
-    });
-    let deform = json!({
-        "status": {"status": "converged"},
+    }))
+    .unwrap();
+    let deform = serde_json::from_value(json!({
+        "articulation": null,
+        "status": {"status": "converged", "reason": "plateau", "mean_offset_mm": 0.1},
         "iterations": 3,
-        "history": (1..=3).map(|i| json!({"iteration": i, "mean_offset_mm": 0.3 / i as f64,
-            "p99_update_mm": 0.2 / (i * i) as f64})).collect::<Vec<_>>(),
-    });
+        "history": (1..=3).map(|i| json!({"iteration": i, "borders_found": 100,
+            "borders_used": 90, "mean_offset_mm": 0.3 / i as f64, "max_update_mm": 0.3,
+            "p99_update_mm": 0.2 / (i * i) as f64, "spring_scale": 1.0})).collect::<Vec<_>>(),
+        "refinement": null,
+        "eardrum": {"free_nodes": 10, "found_last_round": 9, "mean_offset_mm": 0.05},
+        "probe_step_mm": 0.25,
+    }))
+    .unwrap();
     let fit = RigidFit {
         transform: SimilarityTransform::new(Matrix3::identity(), Vector3::zeros(), 1.0476),
         residuals_mm: vec![0.078, 0.061, 0.085],
@@ -105,6 +113,14 @@ fn fixture() -> Fixture {
         deform,
         fit,
     }
+}
+
+/// Changes the fixture's deform record through its JSON form (as an older or another run's
+/// record would read).
+fn edit_deform(f: &mut Fixture, edit: impl FnOnce(&mut Value)) {
+    let mut value = serde_json::to_value(&f.deform).unwrap();
+    edit(&mut value);
+    f.deform = serde_json::from_value(value).unwrap();
 }
 
 fn html(f: &Fixture, accuracy: Accuracy) -> String {
@@ -292,10 +308,12 @@ fn a_run_resumed_past_score_shows_the_stored_scores_and_says_what_is_missing() {
 #[test]
 fn the_surface_level_decides_the_verdict_after_coarse_fem_levels() {
     let mut f = fixture();
-    f.deform["status"] = json!({"status": "max_iterations"});
-    f.deform["refinement"] = json!({"rounds": 7, "mean_offset_first_mm": 0.138,
-        "mean_offset_last_mm": 0.054, "found_fraction": 0.74, "max_move_mm": 0.6,
-        "stiffened_nodes": 300, "stop": "plateau"});
+    edit_deform(&mut f, |d| {
+        d["status"] = json!({"status": "max_iterations"});
+        d["refinement"] = json!({"rounds": 7, "mean_offset_first_mm": 0.138,
+            "mean_offset_last_mm": 0.054, "found_fraction": 0.74, "max_move_mm": 0.6,
+            "stiffened_nodes": 300, "stop": "plateau"});
+    });
     let page = html(&f, Accuracy::NoSegmentation);
     assert!(page.contains(
         "<p class=\"ok\">The deformable registration converged: the FEM levels (3 iterations) \
@@ -309,10 +327,12 @@ fn the_surface_level_decides_the_verdict_after_coarse_fem_levels() {
     assert!(!page.contains("did not converge"));
     // a surface level that found nothing is a failure, whatever the FEM levels did (and its
     // offsets, never measured, are null in the record)
-    f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
-    f.deform["refinement"]["stop"] = json!("nothing_found");
-    f.deform["refinement"]["mean_offset_first_mm"] = json!(null);
-    f.deform["refinement"]["mean_offset_last_mm"] = json!(null);
+    edit_deform(&mut f, |d| {
+        d["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
+        d["refinement"]["stop"] = json!("nothing_found");
+        d["refinement"]["mean_offset_first_mm"] = json!(null);
+        d["refinement"]["mean_offset_last_mm"] = json!(null);
+    });
     let page = html(&f, Accuracy::NoSegmentation);
     assert!(page.contains(
         "<p class=\"bad\">The surface level found no bone border around the registered atlas: \
@@ -326,7 +346,9 @@ fn the_surface_level_decides_the_verdict_after_coarse_fem_levels() {
 #[test]
 fn a_deformable_stage_that_stopped_early_is_flagged() {
     let mut f = fixture();
-    f.deform["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
+    edit_deform(&mut f, |d| {
+        d["status"] = json!({"status": "inversion_guard", "message": "element 7 inverted"});
+    });
     let html = html(&f, Accuracy::NoSegmentation);
     assert!(html.contains(
         "<p class=\"bad\">The deformable registration did not converge (inversion_guard: \
