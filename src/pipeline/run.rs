@@ -626,10 +626,10 @@ fn scores_of(
     registered
         .iter()
         .map(|(name, r)| {
-            let before = rigid.get(name).map(|s| s.distances.clone());
+            let before = rigid.get(name).map(|s| s.distances);
             let improvement = before.as_ref().map(|b| 1.0 - r.distances.masd / b.masd);
             let metrics = StructureMetrics {
-                registered: r.distances.clone(),
+                registered: r.distances,
                 rigid: before,
                 masd_improvement: improvement,
             };
