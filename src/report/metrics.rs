@@ -1,8 +1,8 @@
 //! The parts of a case's `metrics.json` (as `run` writes it) that the reports read, typed:
 //! the per-structure surface distances of the rigid fit and of the registration, the
 //! deformable stage's status and convergence history, and the landmark checks' warnings. Also the registration targets the
-//! reports compare against (mechanics-metrics.md §0.2, "proposed registration targets":
-//! MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle).
+//! reports compare against (the project's own targets, docs/metrics.md, "Registration
+//! targets": MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle).
 
 use std::collections::BTreeMap;
 
@@ -15,9 +15,9 @@ use crate::meshdev::SurfaceDistances;
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
 
-/// Target MASD per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target MASD per ossicle [mm], about one CBCT voxel (docs/metrics.md).
 pub const MASD_TARGET_MM: f64 = 0.2;
-/// Target HD95 per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target HD95 per ossicle [mm] (docs/metrics.md).
 pub const HD95_TARGET_MM: f64 = 0.5;
 
 /// One structure's scores as `metrics.json` holds them under `scores.NAME`.
