@@ -1,6 +1,6 @@
 //! Mesh convergence of the stapes velocity transfer function: an atlas (default: the embedded
-//! one) against a finer one at the six octave points 250…8000 Hz, with the figures,
-//! the largest |ΔdB| (criterion ≤ 1 dB) and the RMS difference of |H_V|:
+//! one) against a finer one at the six octave points 250…8000 Hz: |H_V| of both, the largest
+//! |ΔdB| (criterion ≤ 1 dB; docs/mechanics.md, "Convergence") and the RMS difference of |H_V|:
 //! `cargo run --release --example convergence -- FINE_DIR [ATLAS_DIR]`
 //! (the fine atlas: `otoatlas atlas build --fine --out FINE_DIR`; about 2 minutes and 12 GB).
 

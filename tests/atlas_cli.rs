@@ -537,7 +537,8 @@ fn the_sofa_chain_imports_into_a_usable_atlas() {
     assert_eq!(info["tetrahedra"], 5058);
     // a left ear (docs/anatomy.md), as the landmark file states
     assert_eq!(info["side"], "left");
-    // the README's figures: malleus 11.48 mm³, incus + stapes 15.67 mm³, chain 27.15 mm³
+    // the labelled chain's figures (docs/anatomy.md, "Test anatomy"): malleus 11.48 mm³,
+    // incus + stapes 15.67 mm³, chain 27.15 mm³
     let (m, i, s) = (
         part_size(&info, "malleus"),
         part_size(&info, "incus"),

@@ -1,11 +1,12 @@
 //! The packages `run` makes from the sample cases keep the atlas's mechanics where the
 //! registration alone decides them: the stiffness-controlled transfer function (250 and
 //! 500 Hz within ±3 dB of the atlas's) and the frequency of its maximum (ratio in
-//! [0.8, 1.25], the package gate of mechanics-metrics §0.1 A, once the patient's size is taken
+//! [0.8, 1.25], the package gate of docs/mechanics.md, once the patient's size is taken
 //! out: a similar ear s times larger has s times the stiffness and s³ the mass, so its
-//! frequencies scale by 1/s, and the phantoms are up to ±14 % in size). The eardrum is a membrane
-//! without bending stiffness, so a registration that leaves it rough makes it slack: before
-//! its offsets were smoothed, case-003's package answered 250 Hz 11 dB above the atlas.
+//! frequencies scale by 1/s, and the phantoms are up to ±14 % in size). A registration that
+//! leaves the eardrum rough makes it slack (facets that move with little stretching): on the
+//! earlier, bending-free atlas, before its offsets were smoothed, case-003's package answered
+//! 250 Hz 11 dB above the atlas.
 //! (Higher frequencies also follow the patient's size, which the ±10 % phantoms vary.)
 //! `run` stores the package's validation in its manifest and report, unless switched off.
 

@@ -2,7 +2,7 @@
 //! with a fake patient identity in its DICOM): `verify` accepts a fresh package and names the
 //! fault of a changed byte, a deleted file, an unlisted file and an inverted element (exit 1)
 //! and a missing folder (exit 2); two runs give byte-identical packages; the SOFA scene uses
-//! only components the research note documents (mechanics-metrics §2) with every vector as
+//! only components docs/package-format.md documents ("The SOFA scene") with every vector as
 //! long as the mesh it loads and every value equal to the atlas's material; meshio reads the
 //! Gmsh file with the right cells and physical tags; no patient-identifying field appears in
 //! any output without `--keep-phi`, and it does with it; a package replaced by a later run
@@ -251,9 +251,10 @@ fn two_runs_give_byte_identical_packages() {
     }
 }
 
-/// SOFA components and plugins named in mechanics-metrics §2 (v23.06–v24.12), and the two of
-/// the eardrum's bending (FastTriangularBendingSprings in Sofa.Component.SolidMechanics.Spring,
-/// ConstantForceField in Sofa.Component.MechanicalLoad; sofa-framework/sofa sources).
+/// SOFA components and plugins checked in the sofa-framework/sofa sources of v23.06–v24.12
+/// (docs/package-format.md, "The SOFA scene"), including the two of the eardrum's bending
+/// (FastTriangularBendingSprings in Sofa.Component.SolidMechanics.Spring, ConstantForceField
+/// in Sofa.Component.MechanicalLoad).
 const NOTE_COMPONENTS: [&str; 20] = [
     "Node",
     "RequiredPlugin",

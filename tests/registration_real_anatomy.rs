@@ -13,8 +13,8 @@
 //!
 //! The cases use seeds 101-104 of each chain, which no setting of the registration was chosen
 //! on (the development cases were seeds 1-4). The bounds below are regression bounds at the
-//! figures reached (README, "Accuracy on real chains"); the targets (chain MASD within
-//! half a voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not met yet, and
+//! figures reached (README, "Accuracy on real chains"); the targets (chain MASD within half a
+//! voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not met yet, and
 //! each case prints its figures against them.
 
 mod common;

@@ -151,7 +151,7 @@ pub fn membrane_thickness_mm(region: MembraneRegion) -> f64 {
     }
 }
 
-/// Rayleigh damping C = α M + β K (frozen in the atlas file, mechanics-metrics §1.1).
+/// Rayleigh damping C = α M + β K (frozen in the atlas file; docs/fem.md).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rayleigh {
     /// Mass-proportional coefficient α (1/s).
@@ -168,7 +168,7 @@ pub const RAYLEIGH: Rayleigh = Rayleigh {
     beta_s: 1.0e-4,
 };
 
-/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 [A01]; Merchant, Ravicz & Rosowski 1996 [M]).
+/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 [A01]; Merchant, Ravicz & Rosowski 1996, not checked here).
 pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 1.0e10;
 
 /// Where the damping values come from (stored with them in the atlas file).

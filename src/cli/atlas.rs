@@ -30,7 +30,8 @@ pub struct AtlasArgs {
 
 #[derive(Debug, Subcommand)]
 pub enum AtlasCommand {
-    /// Mesh an anatomy file into an atlas folder (deterministic: same input, same bytes).
+    /// Mesh an anatomy file, or closed bone surfaces, into an atlas folder (deterministic:
+    /// same input, same bytes).
     #[command(after_help = "Examples:
   otoatlas atlas build --out assets/atlas            # the embedded default, rebuilt
   otoatlas atlas build --fine --out fine-atlas       # ~200,000 tetrahedra, for convergence")]

@@ -23,7 +23,7 @@ tables, or .csv with the columns id,image,landmarks[,segmentation]; paths relati
 manifest).
 
 Outputs under OUT: cases/ID/ (what `run` writes, plus status.json), cohort.json, the cohort \
-report. Exit code 1 when any case failed.
+report cohort.html and cohort.csv. Exit code 1 when any case failed.
 
 Examples:
   otoatlas batch sample_cases --out out/cohort
@@ -40,7 +40,8 @@ pub struct BatchArgs {
     /// Cases at once (and threads in all); default: every core.
     #[arg(long, value_name = "N")]
     pub jobs: Option<usize>,
-    /// Skip the cases whose outputs are complete and current (same inputs and configuration).
+    /// Skip the cases whose outputs are complete and current (same inputs, configuration and
+    /// atlas).
     #[arg(long)]
     pub resume: bool,
     /// Run only the K-th of N deterministic slices of the cohort (K from 0); default: from

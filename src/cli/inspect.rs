@@ -17,7 +17,8 @@ use crate::{Error, image};
   otoatlas inspect scan.nii.gz --json
   otoatlas inspect /media/export --series 3f9a1c   # pick a series by its hash prefix")]
 pub struct InspectArgs {
-    /// A folder of DICOM files (searched recursively), a DICOM file, or a .nii/.nii.gz file.
+    /// A folder of DICOM files (searched recursively), a DICOM file, or a NIfTI file (.nii,
+    /// .nii.gz, or the .hdr of a .hdr/.img pair).
     pub path: PathBuf,
     /// Which series to read when the folder holds several: a SeriesInstanceUID or a prefix
     /// (at least 6 hex digits) of its SHA-256 as listed.

@@ -19,8 +19,8 @@ use crate::{Error, progress};
 /// map, truth.json) from seeded variations of the atlas, or around a real ossicular chain.
 #[derive(Debug, Args)]
 #[command(
-    after_help = "Case k (1-based) is OUT/case-00k, made from seed S + k - 1; the same
-seed always gives byte-identical files.
+    after_help = "Case k (1-based) is OUT/case-k in three digits (case-001, case-002, ...),
+made from seed S + k - 1; the same seed always gives byte-identical files.
 
 Examples:
   otoatlas phantom --out sample_cases --cases 3 --seed 2026

@@ -12,20 +12,22 @@ use crate::ear::Side;
 use crate::pipeline::{Case, RunOptions, Stage, run_case};
 
 /// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
-/// segmentation), export.
+/// segmentation), export; then validate the package's mechanics against the atlas
+/// ([validate] in the configuration) and write the report and the package.
 #[derive(Debug, Args)]
 #[command(
-    after_help = "Outputs under OUT: package/ (the ready-to-simulate patient package: SOFA
-scene.scn, mesh.msh, mesh.vtu, atlas.json, surfaces, landmarks, manifest.json; written last,
-check it with `otoatlas verify OUT/package`), package.log.json, registered/surfaces/*.ply,
-registered/volume.vtu, registered/landmarks.{json,fcsv}, metrics.json, timings.json, and
+    after_help = "Outputs under OUT: package/ (the ready-to-simulate patient package, written
+last; its files are described in docs/package-format.md; check it with `otoatlas verify
+OUT/package`), package.log.json, report.html, metrics.json, mechanics.json (with [validate]),
+timings.json, registered/surfaces/*.ply, registered/volume.vtu,
+registered/landmarks.{json,fcsv}, registered/deviation/*.ply (with a segmentation), and
 stages/ (one artefact per stage, for --from). No DICOM patient field is written unless
 --keep-phi is given.
 
 Examples:
-  otoatlas run sample_cases/case-000 --out out/case-000
+  otoatlas run sample_cases/case-001 --out out/case-001
   otoatlas run scan/ --landmarks picks.fcsv --side left --out out/scan
-  otoatlas run sample_cases/case-000 --out out/case-000 --from deform --config tuned.toml"
+  otoatlas run sample_cases/case-001 --out out/case-001 --from deform --config tuned.toml"
 )]
 pub struct RunArgs {
     /// The case folder (dicom/ or image.nii.gz, landmarks, optional segmentation/) or an image.

@@ -14,8 +14,8 @@ use crate::atlas::load_atlas;
 use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_package};
 use crate::report::mechanics_plots::validation_plots;
 
-/// Validate the mechanics of an atlas: umbo displacement under static pressure (UDSP) and the
-/// stapes velocity transfer function (TFA), with verdicts.
+/// Validate the mechanics of an atlas or a patient package: umbo displacement under static
+/// pressure (UDSP) and the stapes velocity transfer function (TFA), with verdicts.
 #[derive(Debug, Args)]
 #[command(after_help = "Examples:
   otoatlas validate                                  # the embedded atlas, literature gates

@@ -1,19 +1,8 @@
 //! Writing the patient package: the registered atlas as a simulator loads it, assembled in a
 //! temporary sibling folder and renamed into place, so a package is complete or absent (an
 //! older package is replaced only once the new one is whole). Same inputs and configuration
-//! give the same bytes: nothing depends on the time, the machine or a path.
-//!
-//! ```text
-//! package/
-//!   manifest.json        what it was made from, units, transform, SHA-256 of every file
-//!   scene.scn            SOFA scene (v23.06+) loading mesh.msh
-//!   mesh.msh             Gmsh MSH 2.2 ASCII: tetrahedra + eardrum triangles, physical tag = region
-//!   mesh.vtu             the same cells with region and per-cell material arrays (SI)
-//!   atlas.json           the atlas's regions, materials, damping, supports, node sets, load
-//!                        surfaces and tied landmarks, unchanged (otoatlas-atlas format, mesh.vtu)
-//!   surfaces/{malleus,incus,stapes,eardrum}.ply
-//!   landmarks.fcsv  landmarks.mrk.json  landmarks.json
-//! ```
+//! give the same bytes: nothing depends on the time, the machine or a path. The files it
+//! holds and the manifest's fields are described once, in docs/package-format.md.
 
 use std::path::{Path, PathBuf};
 

@@ -4,16 +4,16 @@
 //! springs, cochlear dashpots and Rayleigh damping; the eardrum's bending as linear bending
 //! springs about the rest shape, `scene_bending`).
 //!
-//! Facts from the research note mechanics-metrics §2 (checked in sofa-framework/sofa
-//! v23.06–v24.12): per-element `youngModulus` vectors are written full length in topology order
-//! (valid in every version, §2.1); TriangularFEMForceField has no thickness, so membranes get
-//! E·h (§2.3); DiagonalMass takes one `vertexMass` per point, computed here as
-//! Σ ρV/4 + Σ ρhA/3 (§2.4); `FixedConstraint` is the v23 name of FixedProjectiveConstraint
-//! (§2.1); MeshGmshLoader gets `createSubelements="false"` (it defaults to true for Gmsh
-//! files and would add every tetrahedron face to the loader's triangles: MeshGmshLoader.cpp,
-//! MeshLoader.cpp in sofa-framework/sofa); the child node "Eardrum" has a triangle topology and no MechanicalObject, so its
-//! force fields act on the parent's DOFs (§2.8). Units mm-g-s: force µN, modulus and pressure
-//! Pa, mass g, stiffness µN/mm, damping g/s.
+//! What it relies on in SOFA (checked in the sofa-framework/sofa sources of v23.06–v24.12;
+//! docs/package-format.md, "The SOFA scene"): per-element `youngModulus` vectors are written
+//! full length in topology order (valid in every version); TriangularFEMForceField has no
+//! thickness, so membranes get E·h; DiagonalMass takes one `vertexMass` per point, computed
+//! here as Σ ρV/4 + Σ ρhA/3; `FixedConstraint` is the v23 name of FixedProjectiveConstraint;
+//! MeshGmshLoader gets `createSubelements="false"` (it defaults to true for Gmsh files and
+//! would add every tetrahedron face to the loader's triangles: MeshGmshLoader.cpp,
+//! MeshLoader.cpp in sofa-framework/sofa); the child node "Eardrum" has a triangle topology
+//! and no MechanicalObject, so its force fields act on the parent's DOFs. Units mm-g-s: force
+//! µN, modulus and pressure Pa, mass g, stiffness µN/mm, damping g/s.
 
 use std::fmt::Write as _;
 

@@ -1,5 +1,6 @@
 //! The SOFA components a package's scene may use, each with the plugin that provides it, as
-//! checked in sofa-framework/sofa v23.06–v24.12 (research note mechanics-metrics §2.1–2.8).
+//! checked in the sofa-framework/sofa sources of v23.06–v24.12 (docs/package-format.md, "The
+//! SOFA scene").
 //! The scene writer emits only these; `verify` rejects any other element and any component
 //! whose plugin the scene does not require.
 
@@ -42,7 +43,7 @@ pub const COMPONENTS: [(&str, Option<&str>); 18] = [
         "RestShapeSpringsForceField",
         Some("Sofa.Component.SolidMechanics.Spring"),
     ),
-    // named FixedProjectiveConstraint from v24.06; the old name loads until v25.06 (§2.1)
+    // named FixedProjectiveConstraint from v24.06; the old name loads until v25.06
     (
         "FixedConstraint",
         Some("Sofa.Component.Constraint.Projective"),

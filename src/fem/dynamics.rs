@@ -1,6 +1,6 @@
 //! One linearised backward-Euler step of corotational elasticity with lumped mass and Rayleigh
 //! damping C = α M + β K' (SOFA EulerImplicitSolver, rayleighMass = α, rayleighStiffness = β;
-//! Müller & Gross 2004 form, mechanics-metrics §2.6 and §4.2):
+//! Müller & Gross 2004 form; docs/fem.md):
 //!
 //! (M + h C + h² K') v' = M v − h (K' x − f0' − f_ext) = M v + h (f_el(x) + f_ext),
 //! x' = x + h v'.

@@ -3,7 +3,7 @@
 //! Rest data are the shape-function gradients g_a (1/mm, world rest frame), a measure w (the
 //! volume V for a tetrahedron, h·A for a membrane, mm³), the Lamé pair and the rest unit normal
 //! N (zero for a tetrahedron, so that the in-plane projector P = I − N Nᵀ is the identity).
-//! Linear stiffness blocks (Voigt form K_e = w·BᵀDB, mechanics-metrics §4.1/§4.3, written per
+//! Linear stiffness blocks (Voigt form K_e = w·BᵀDB, docs/fem.md, written per
 //! node pair): K_ab = w(λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) P).
 //! Corotation (Müller & Gross 2004; Nesme et al. 2005): with element rotation R,
 //! f = −R K (Rᵀx − X). Using F = Σ x_a g_aᵀ and Σ X_a g_aᵀ = P this is the stress form

@@ -1,5 +1,5 @@
 //! Steady-state harmonic response of the model linearised about its rest shape: the complex
-//! frequency-domain system (mechanics-metrics §1.1)
+//! frequency-domain system (docs/fem.md)
 //!
 //! [K (1 + iωβ) + iω (α M + C) − ω² M] û = F̂,
 //!

@@ -4,7 +4,7 @@
 //! Units (mm-g-s): Young's modulus in Pa (= µN/mm²), density in g/mm³ (1 kg/m³ = 1e-6 g/mm³),
 //! thickness in mm. Lamé parameters: λ = Eν/((1+ν)(1−2ν)), μ = E/(2(1+ν)); plane stress uses
 //! λ* = 2λμ/(λ+2μ) = Eν/(1−ν²), which gives D_ps = E/(1−ν²)[[1,ν,0],[ν,1,0],[0,0,(1−ν)/2]]
-//! (mechanics-metrics §4.1 and §4.3).
+//! (docs/fem.md).
 
 use super::error::FemError;
 

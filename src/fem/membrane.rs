@@ -1,7 +1,7 @@
 //! Constant-strain (CST) plane-stress membrane triangle of thickness h, zero bending stiffness.
 //!
 //! In-plane gradients ∇N_a = N × (X_c − X_b)/(2A) for (a, b, c) cyclic, i.e. the b_i, c_i of
-//! the CST B matrix (mechanics-metrics §4.3; Felippa, IFEM, "The Linear Triangle"), stored as
+//! the CST B matrix (docs/fem.md; Felippa, IFEM, "The Linear Triangle"), stored as
 //! world-frame vectors in the rest plane, with measure h·A and the plane-stress Lamé pair.
 //! Corotation: the rotation maps the rest triangle frame onto the current one, taken as the
 //! polar rotation of F + n Nᵀ (n the current winding normal), which fixes the normal and picks
@@ -85,7 +85,8 @@ mod tests {
     use super::*;
     use nalgebra::SMatrix;
 
-    /// §4.3 verbatim: local frame, b_i = y_j − y_k, c_i = x_k − x_j, B, D_ps, K = h·A·BᵀDB.
+    /// The textbook CST (docs/fem.md): local frame, b_i = y_j − y_k, c_i = x_k − x_j, B, D_ps,
+    /// K = h·A·BᵀDB.
     #[test]
     fn blocks_equal_section_4_3_cst_stiffness() {
         let rest = vec![

@@ -1,9 +1,10 @@
 //! Finite-element core: corotational linear tetrahedra (Müller & Gross 2004, SOFA
-//! TetrahedronFEMForceField method="polar") and corotational CST membrane triangles, lumped
-//! masses, sparse assembly with a pattern built once per mesh, a sparse Cholesky whose symbolic
-//! analysis is reused, a quasi-static spring-equilibrium solver and a linearised implicit
-//! Euler step, a follower pressure load and a complex harmonic (frequency-domain) solver.
-//! Formulas: mechanics-metrics §4 in the project's shared notes.
+//! TetrahedronFEMForceField method="polar") and corotational CST membrane triangles, the
+//! membrane's discrete-shell bending hinges, lumped masses, sparse assembly with a pattern
+//! built once per mesh, a sparse Cholesky whose symbolic analysis is reused, a quasi-static
+//! spring-equilibrium solver and a linearised implicit Euler step (with a conjugate-gradient
+//! solver preconditioned by an earlier factor), a follower pressure load and a complex
+//! harmonic (frequency-domain) solver. Formulas: docs/fem.md.
 //!
 //! Units (mm-g-s): positions in mm, forces in µN, stiffness in µN/mm, Young's modulus and
 //! stress in Pa (= µN/mm²), density in g/mm³, mass in g, time in s. Degrees of freedom are

@@ -2,7 +2,7 @@
 //! triangles with their materials, and the lumped nodal masses.
 //!
 //! Inputs are plain slices so the model depends on no other otoatlas module. Lumped mass
-//! (SOFA DiagonalMass with vertexMass, mechanics-metrics §2.4): m_v = Σ_tets ρV/4 + Σ_tris ρhA/3,
+//! (SOFA DiagonalMass with vertexMass; docs/fem.md): m_v = Σ_tets ρV/4 + Σ_tris ρhA/3,
 //! in g.
 
 use nalgebra::Point3;

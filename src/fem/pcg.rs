@@ -1,7 +1,7 @@
 //! Conjugate gradients on a symmetric positive-definite operator (a matrix-free product, e.g.
 //! `StepOperator::apply`), preconditioned by a (possibly stale) sparse Cholesky factor: the scheme of Courtecuisse,
 //! Allard, Duriez & Cotin 2010 ("asynchronous preconditioners", SOFA's PCGLinearSolver with
-//! an AsyncSparseLDLSolver preconditioner; mechanics-metrics §2.6). With a factor of the
+//! an AsyncSparseLDLSolver preconditioner; docs/fem.md). With a factor of the
 //! current matrix it converges in one iteration; with one a few steps old, in a few.
 //! Buffers are allocated once per solver and reused; the residual is tested before the
 //! preconditioner is applied, so the last iteration costs no preconditioner solve.

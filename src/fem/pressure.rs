@@ -1,5 +1,5 @@
 //! Follower pressure on a triangulated surface (SOFA SurfacePressureForceField,
-//! mechanics-metrics §4.4): per triangle (a, b, c) each node receives (p/6)·(b − a)×(c − a),
+//! docs/fem.md): per triangle (a, b, c) each node receives (p/6)·(b − a)×(c − a),
 //! i.e. p·A/3 along the current winding normal, evaluated at the current positions, so the
 //! load turns with the surface. Units: p in Pa (= µN/mm²), forces in µN.
 

@@ -1,6 +1,6 @@
 //! Quasi-static equilibrium of corotational elasticity plus zero-rest-length springs and nodal
 //! forces, by Newton-like iterations on the warped tangent (SOFA StaticSolver with the
-//! TetrahedronFEMForceField tangent R K Rᵀ, no dR/dx term; mechanics-metrics §2.2, §4.2).
+//! TetrahedronFEMForceField tangent R K Rᵀ, no dR/dx term; docs/fem.md, "Corotation").
 //!
 //! Each iteration at positions x: residual r = f_el(x) + Σ k (p − x_node) + f_ext, tangent
 //! A = K'(x) + Σ k I (spring nodes) + shift·I (optional), fixed DOFs projected out; assemble,
@@ -151,7 +151,7 @@ impl<'m> StaticSolver<'m> {
     /// As [`StaticSolver::solve`], plus a follower `pressure` re-evaluated at every iterate.
     /// The tangent adds the membranes' tensile stress stiffness (a pressurised membrane's
     /// out-of-plane stiffness; `SparsePattern::add_membrane_stress_stiffness`). The load's own
-    /// stiffness (non-symmetric, of order p·L, mechanics-metrics §4.4) is left out
+    /// stiffness (non-symmetric, of order p·L; docs/fem.md, "Follower pressure") is left out
     /// of the tangent, so the iteration is a modified Newton that converges linearly at the
     /// rate (load stiffness)/(structural stiffness); the equilibrium it reaches is exact.
     pub fn solve_with_pressure(

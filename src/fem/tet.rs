@@ -1,7 +1,7 @@
 //! Linear (4-node, constant-strain) tetrahedron: rest shape gradients and current rotation.
 //!
 //! Dm = [X1−X0, X2−X0, X3−X0], V = |det Dm|/6, rows of Dm⁻¹ are ∇N1..∇N3 and
-//! ∇N0 = −(∇N1+∇N2+∇N3) (mechanics-metrics §4.1). The rotation is the polar rotation of
+//! ∇N0 = −(∇N1+∇N2+∇N3) (docs/fem.md). The rotation is the polar rotation of
 //! F = Ds·Dm⁻¹ (SOFA TetrahedronFEMForceField method="polar", Müller & Gross 2004). Rest
 //! orientation may be either handedness; an element is inverted when det F ≤ 0.
 
@@ -86,7 +86,7 @@ mod tests {
         (rest, tet)
     }
 
-    /// K_e = V·BᵀDB built from the explicit 6×12 Voigt B and 6×6 D of §4.1.
+    /// K_e = V·BᵀDB built from the explicit 6×12 Voigt B and 6×6 D (docs/fem.md).
     fn voigt_stiffness(tet: &TetElement) -> nalgebra::SMatrix<f64, 12, 12> {
         let mut b = nalgebra::SMatrix::<f64, 6, 12>::zeros();
         for (a, g) in tet.grads.iter().enumerate() {

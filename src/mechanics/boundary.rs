@@ -4,7 +4,7 @@
 //! Boundary conditions (the choice, stated once):
 //! - the tympanic annulus and the wall end (`anchor:<ligament>`) of every ligament and tendon
 //!   are **fixed** (all three DOFs): they sit in bone, which is rigid at these loads
-//!   (SOFA FixedProjectiveConstraint, mechanics-metrics §2.5);
+//!   (SOFA FixedProjectiveConstraint);
 //! - the stapedial annular ligament is **elastic**: isotropic zero-rest-length springs on the
 //!   footplate rim nodes, the atlas's total stiffness shared equally (SOFA
 //!   RestShapeSpringsForceField); fixing it would immobilise the stapes;

@@ -1,9 +1,8 @@
 //! Mechanical validation and simulation of an atlas (or of a package: the atlas with
 //! registered node positions): umbo displacement under static pressure (UDSP), the stapes
 //! velocity transfer function (TFA), their verdicts against literature bands and against a
-//! reference atlas, and real-time implicit time stepping. Facts, bands and formulas:
-//! mechanics-metrics §0.1, §1, §2, §4 in the project's shared notes; method and figures in
-//! `docs/mechanics.md`.
+//! reference atlas, and real-time implicit time stepping. Method, bands (and where they come
+//! from) and figures: `docs/mechanics.md`; the FEM formulas: `docs/fem.md`.
 
 pub mod boundary;
 pub mod error;

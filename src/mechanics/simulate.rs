@@ -1,5 +1,5 @@
 //! Real-time stepping of the mechanical system: linearised backward Euler, one solve per step
-//! (SOFA EulerImplicitSolver; mechanics-metrics §2.6, §4.2):
+//! (SOFA EulerImplicitSolver; docs/fem.md):
 //!
 //! (M(1 + hα) + hC + h(h + β)K_T) v' = M v + h (f_el(x) + f_springs(x) + f_ext(x)),
 //! x' = x + h v',

@@ -1,5 +1,5 @@
 //! Transfer function analysis (TFA): the stapes velocity transfer function
-//! H_V(f) = V_stapes / P_TM (ASTM F2504; mechanics-metrics §1.1) from harmonic solves
+//! H_V(f) = V_stapes / P_TM (ASTM F2504; docs/mechanics.md) from harmonic solves
 //! linearised about the rest shape,
 //! [K(1 + iωβ) + iω(αM + C_cochlea) − ω²M] û = F̂.
 //!

@@ -1,4 +1,4 @@
-//! Umbo displacement under static pressure (UDSP), mechanics-metrics §1.2.
+//! Umbo displacement under static pressure (UDSP); docs/mechanics.md.
 //!
 //! Sign convention: p = P_ear canal − P_middle ear; p > 0 pushes the eardrum medially. The
 //! umbo displacement u is measured along the medial axis (positive = medial), so u(p) has the

@@ -1,13 +1,15 @@
 //! Verdicts: each gate with its measured value, its band and the outcome.
 //!
-//! Literature gates (an atlas; mechanics-metrics §0.1 B and §1.1, bands from Goode et al. 1994
+//! Where the bands come from: docs/mechanics.md, "Where the gates come from".
+//!
+//! Literature gates (an atlas; bands from Goode et al. 1994
 //! temporal-bone data widened by the ±10 dB inter-subject spread of Whittemore et al. 2004):
 //! |H_V| inside the band at 250, 500, 1k, 2k, 4k, 8k Hz; slope +3…+9 dB/octave from 250 to
 //! 500 Hz; maximum between 0.6 and 1.5 kHz; |H_V(4 kHz)| 8…25 dB below the maximum; UDSP
 //! asymmetry |u(−4 kPa)|/|u(+4 kPa)| in [1.45, 2.07] (the study's 1.76 ± 0.31) and a
 //! monotonic, sign-preserving response.
 //!
-//! Relative gates (a package against the atlas it came from; §0.1 A): |ΔdB| ≤ 3 at every
+//! Relative gates (a package against the atlas it came from): |ΔdB| ≤ 3 at every
 //! frequency, peak frequency ratio in [0.8, 1.25], |Δphase| ≤ 45° up to 4 kHz, umbo
 //! displacement within ±25 % at ±1, ±2, ±4 kPa, asymmetry in band and on the same side.
 
@@ -16,7 +18,8 @@ use serde::Serialize;
 use super::tfa::TransferFunction;
 use super::udsp::{GATE_PRESSURES_PA, StaticCurve};
 
-/// Goode-band edges (µm/s/Pa) at the gate frequencies: (Hz, low, high), §1.1.
+/// Goode-band edges (µm/s/Pa) at the gate frequencies: (Hz, low, high); their derivation is
+/// in docs/mechanics.md.
 pub const GOODE_BAND: [(f64, f64, f64); 6] = [
     (250.0, 11.5, 229.0),
     (500.0, 24.0, 477.0),

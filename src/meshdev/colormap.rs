@@ -1,7 +1,7 @@
 //! Diverging blue–white–red colours for signed deviations over a fixed range.
 //!
 //! The range is fixed by the caller, not fitted to the data, so maps of different patients
-//! compare (Metro's `-C min max` rationale, mechanics-metrics.md §0.2 and §3.1). The ramp is
+//! compare (Metro's `-C min max` rationale; docs/metrics.md, "The deviation map"). The ramp is
 //! ColorBrewer RdBu with 11 classes (Brewer, colorbrewer2.org), ordered blue (min, inside) →
 //! white (mid-range) → red (max, outside), linearly interpolated in sRGB; values beyond the
 //! range take the end colours.
@@ -31,7 +31,7 @@ pub struct ColourRange {
 }
 
 impl Default for ColourRange {
-    /// −0.5 … +0.5 mm, the metrics note's example range (about ±2 CBCT voxels).
+    /// −0.5 … +0.5 mm (about ±2 CBCT voxels; docs/metrics.md).
     fn default() -> Self {
         ColourRange {
             min_mm: -0.5,

@@ -1,7 +1,7 @@
 //! Surface-distance scoring of a test (registered) surface against a reference (manual
-//! segmentation) surface, MeshDev-style, with the metrics of mechanics-metrics.md §0.2:
+//! segmentation) surface, MeshDev-style, with the metrics defined in docs/metrics.md:
 //! MASD (headline), ASSD, RMS, HD, HD95, signed bias, Surface Dice@τ, and the MeshDev-mode
-//! one-sided per-vertex mean and max (Roy, Foufou & Truchetet 2004, §3.4 of the note).
+//! one-sided per-vertex mean and max (after Roy, Foufou & Truchetet 2004).
 //!
 //! * Distances are exact point-to-triangle distances (Ericson's region method) found through
 //!   our own SAH bounding-volume hierarchy, both in `mesh::spatial` (which also holds the
@@ -36,7 +36,7 @@ use crate::mesh::TriMesh;
 pub struct CompareOptions {
     /// How both surfaces are sampled (default: area sampling, 10 per triangle, fixed seed).
     pub sampling: Sampling,
-    /// Surface Dice tolerance τ (mm); the metrics note uses one voxel of the image.
+    /// Surface Dice tolerance τ (mm); `run` uses one voxel of the image (docs/metrics.md).
     pub tolerance_mm: f64,
     /// Fixed signed range of the deviation colours (default −0.5 … +0.5 mm).
     pub colour_range: ColourRange,

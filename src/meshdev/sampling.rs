@@ -1,7 +1,7 @@
 //! Deterministic, area-weighted point samples of a triangle surface.
 //!
-//! The metrics note (mechanics-metrics.md §0.2, after Metro §3.1 and MESH §3.2) asks for
-//! area-weighted sampling. Two schemes:
+//! The metrics are area-weighted (docs/metrics.md, after Metro and MESH), so the samples
+//! are too. Two schemes:
 //!
 //! * `Sampling::Area` (default): **systematic area sampling**. The surface's cumulative area
 //!   is cut into `count` equal strata; sample k sits at cumulative area

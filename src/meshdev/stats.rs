@@ -1,6 +1,6 @@
 //! Directed and symmetric surface-distance statistics from weighted samples.
 //!
-//! Definitions exactly as mechanics-metrics.md §0.2 (and §3.1–3.3 for their sources):
+//! Definitions exactly as docs/metrics.md (with their sources: Metro, MESH, DeepMind):
 //! directed A→B weighted mean, RMS, max and P95, where P95 is DeepMind
 //! `compute_robust_hausdorff`'s weighted percentile (sort by distance, cumulative normalised
 //! area, `searchsorted(0.95)` with numpy's default left side, index clamped to the last

@@ -1,6 +1,6 @@
 //! Scoring a registration against a manual segmentation: each structure's registered surface
 //! against the segmentation's surface of the same name, with the surface distances of
-//! `meshdev` (MASD, HD95, ... as defined in the metrics note), and the per-vertex deviation
+//! `meshdev` (MASD, HD95, ... as defined in docs/metrics.md), and the per-vertex deviation
 //! maps of the registered surfaces.
 
 use std::collections::BTreeMap;

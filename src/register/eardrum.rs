@@ -1,6 +1,6 @@
-//! The eardrum after the ossicles: its membrane has no bending stiffness, so during
-//! registration it is not part of the FEM (a sheet in compression has no equilibrium, it
-//! wrinkles). Instead its free nodes follow the registered manubrium smoothly — the
+//! The eardrum after the ossicles: it is not part of the registration's FEM (a thin sheet,
+//! whose out-of-plane stiffness is mostly its tension, wrinkles in compression). Instead its
+//! free nodes follow the registered manubrium smoothly — the
 //! displacement of the nodes it shares with the manubrium, spread over the membrane by a
 //! discrete Laplace equation with the rim held where the rigid fit put it — and then, where the
 //! image shows the sheet, each node moves along its normal to the intensity ridge, the offsets
@@ -148,8 +148,9 @@ pub fn fit_eardrum(
 /// Σ_found weight (s_v − o_v)² + Σ_edges (s_v − s_w)² over the free nodes, with
 /// s = 0 on the nodes the tetrahedra hold (the manubrium attachment). Node-to-node noise of
 /// the probes is damped about 1 + 2·degree/weight times (`eardrum_offset_weight`) while the sheet's broad shape passes:
-/// a membrane with no bending stiffness must stay smooth, or it goes slack (a crumpled
-/// membrane has no stiffness until its wrinkles are pulled out). Gauss-Seidel sweeps.
+/// a rough registered eardrum has facets that move with little stretching, so it goes slack
+/// and its mechanics leave the atlas's (docs/mechanics.md, "Packages: the registered eardrum
+/// must stay smooth"). Gauss-Seidel sweeps.
 fn smooth_offsets(
     free: &[usize],
     neighbours: &[Vec<u32>],

@@ -1,7 +1,7 @@
 //! The cohort report `batch` writes: one HTML page (summary counts, per-structure box plots of
 //! the registered MASD and HD95 across cases, the worst cases by their worst ossicle's MASD
 //! with links to their reports, the failed cases with their errors) and a CSV of every metric,
-//! one row per case and structure. Metric definitions: mechanics-metrics.md §0.2.
+//! one row per case and structure. Metric definitions: docs/metrics.md.
 
 use std::collections::BTreeMap;
 

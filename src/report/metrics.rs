@@ -1,6 +1,7 @@
 //! A case's `metrics.json`, typed: `run` writes it from these types and the reports (and
 //! `--json`, and the cohort summary) read it through them. Also the registration targets the
-//! reports compare against (MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle; docs/registration.md).
+//! reports compare against (the project's own targets, docs/metrics.md, "Registration
+//! targets": MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm per ossicle).
 
 use std::collections::BTreeMap;
 
@@ -16,9 +17,9 @@ use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
 use crate::register::rigid::{RigidFit, SimilarityTransform};
 
-/// Target MASD per ossicle [mm].
+/// Target MASD per ossicle [mm], about one CBCT voxel (docs/metrics.md).
 pub const MASD_TARGET_MM: f64 = 0.2;
-/// Target HD95 per ossicle [mm].
+/// Target HD95 per ossicle [mm] (docs/metrics.md).
 pub const HD95_TARGET_MM: f64 = 0.5;
 
 /// A case's `metrics.json`.

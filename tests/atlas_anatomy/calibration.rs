@@ -3,7 +3,7 @@
 //! specimen is a left ear, so the atlas is mirrored to a left ear first; then a similarity
 //! transform (scale, rotation, translation; never a reflection) is fitted by symmetric ICP
 //! with Umeyama's closed form (Umeyama 1991, IEEE TPAMI 13:376), and the mean symmetric
-//! surface distance (MASD, mechanics-metrics §0.2) is measured both ways on dense samples.
+//! surface distance (MASD, docs/metrics.md) is measured both ways on dense samples.
 //!
 //! The readers here are minimal and test-only (OBJ `v`/`f` lines; the VTU's ASCII
 //! `DataArray`s) and never copy the data into the repository.
@@ -22,7 +22,7 @@ const CT_CHAIN_MASD_BOUND: f64 = 0.6;
 
 fn shared() -> Option<PathBuf> {
     // `../shared` next to the crate, or the directory named by OTOATLAS_SHARED_DIR (for
-    // worktrees that do not sit next to the shared notes).
+    // checkouts that do not sit next to the shared anatomy folder).
     let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"));

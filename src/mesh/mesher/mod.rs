@@ -24,11 +24,12 @@
 //! offset < 0.001 mm; min dihedral ≥ the guard (10° by default), median of per-tet minimum 60°.
 //!
 //! Minimum feature size: a structure survives as a connected set of tets when it is at least
-//! about `0.7 h` thick (centroid rule; thinner sheets get holes), or about `0.4 h` for a region listed in
-//! [`MesherParams::thin_regions`] (measured on a tilted sheet; see the tests). For an edge length of
-//! 0.35 mm (`h` ≈ 0.38 mm) that is 0.27 mm, or 0.15 mm for thin regions; stapes crura
-//! (~0.3 mm) and ligaments (0.3–0.5 mm) should be listed as thin (a thin sheet is then one or
-//! two tets thick; mesh finer where bending through the thickness matters).
+//! about `0.7 h` thick (centroid rule; thinner sheets get holes), or about `0.4 h` for a region
+//! listed in [`MesherParams::thin_regions`] (measured on a tilted sheet; see the tests). For
+//! the default edge length of 0.33 mm (`h` ≈ 0.36 mm) that is 0.25 mm, or 0.15 mm for thin
+//! regions; stapes crura (~0.3 mm) and ligaments (0.3–0.5 mm) should be listed as thin (a thin
+//! sheet is then one or two tets thick; mesh finer where bending through the thickness
+//! matters).
 //!
 //! Deterministic: labels and interface targets are computed in parallel into index-ordered
 //! vectors; repair and guarded moves run sequentially in node order.
@@ -47,6 +48,10 @@ pub use surface_domain::{SurfaceDomain, SurfaceDomainError};
 
 use crate::mesh::{LabelledDomain, TetMesh};
 use lattice::{Lattice, MEAN_EDGE_PER_SPACING, NodeTets};
+
+/// Default target mean edge length (mm): the default atlas's, which
+/// `atlas::volume::DEFAULT_EDGE_MM` takes from here (the reason for 0.33 mm is given there).
+pub const DEFAULT_TARGET_EDGE_MM: f64 = 0.33;
 
 /// Mesher settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,7 +75,7 @@ pub struct MesherParams {
 impl Default for MesherParams {
     fn default() -> Self {
         Self {
-            target_edge_mm: 0.35,
+            target_edge_mm: DEFAULT_TARGET_EDGE_MM,
             min_dihedral_deg: 10.0,
             snap_sweeps: 4,
             thin_regions: Vec::new(),

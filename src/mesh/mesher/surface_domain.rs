@@ -239,7 +239,8 @@ mod tests {
         let m = &out.mesh;
         assert_eq!(m.inverted_count(), 0);
         let v = m.volume();
-        // 10.51 mm³ (data README); the inscribed mesh loses a little at the thin handle tip.
+        // 10.51 mm³ (docs/anatomy.md, "Test anatomy"); the inscribed mesh loses a little at
+        // the thin handle tip.
         assert!((v - exact).abs() / exact < 0.03, "volume {v} vs {exact}");
         let topo = surface_topology(&m.boundary(BoundaryOf::Whole).surface);
         assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
@@ -291,7 +292,7 @@ mod tests {
             return;
         }
         let surface = crate::mesh::io::obj::read_obj(&path).unwrap();
-        // Genus 1 (the hole of the stapes arch), 56.2 mm³ (data README).
+        // Genus 1 (the hole of the stapes arch), 56.2 mm³ (docs/anatomy.md, "Test anatomy").
         assert_eq!(surface_topology(&surface).euler, 0);
         let exact = surface.signed_volume();
         let domain = SurfaceDomain::new(&[surface]).unwrap();

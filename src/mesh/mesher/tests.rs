@@ -217,7 +217,7 @@ impl LabelledDomain for TiltedSlab {
 
 #[test]
 fn thin_slab_survives_as_one_closed_sheet() {
-    // 0.3 mm (stapes crus thickness) at the default 0.35 mm edge: h ≈ 0.38 mm > thickness.
+    // 0.3 mm (stapes crus thickness) at the default 0.33 mm edge: h ≈ 0.36 mm > thickness.
     let p = MesherParams {
         thin_regions: vec![1],
         ..MesherParams::default()

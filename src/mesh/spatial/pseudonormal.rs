@@ -5,8 +5,8 @@
 //! IEEE TVCG 11(3), 2005: for a closed, consistently oriented 2-manifold, the sign of
 //! `n(q*)·(p − q*)` is the inside/outside sign of `p` when `n` is the face normal for a face
 //! hit, the sum of the two face normals for an edge hit, and the sum of incident face normals
-//! weighted by their corner angles for a vertex hit. Convention of the metrics note
-//! (mechanics-metrics.md §0.2): positive = the point is outside the reference. Boundary
+//! weighted by their corner angles for a vertex hit. Convention of the surface-distance
+//! metrics (docs/metrics.md): positive = the point is outside the reference. Boundary
 //! edges of open surfaces use their one face normal; non-manifold edges sum all their faces.
 
 use nalgebra::{Point3, Vector3};

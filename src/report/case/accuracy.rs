@@ -1,5 +1,5 @@
 //! The accuracy sections of the case report: the surface distances per structure for the
-//! rigid fit and the registration (definitions of mechanics-metrics.md §0.2, computed by
+//! rigid fit and the registration (definitions in docs/metrics.md, computed by
 //! `meshdev`), and the histogram of the registered surface's signed distances per structure.
 
 use std::collections::BTreeMap;

@@ -1,9 +1,9 @@
 //! The per-case report `run` writes as `OUT/report.html`: the page a clinical engineer reads to
 //! accept or reject a registration. One self-contained file (charts as inline SVG, slices as
 //! inline PNG, no script, no network reference) with, in order: a verdict against the
-//! registration targets (mechanics-metrics.md §0.2), the case summary (image geometry, side,
+//! registration targets (docs/metrics.md), the case summary (image geometry, side,
 //! atlas, landmark residuals and warnings, rigid scale, deformable status, timings), the surface distances
-//! per structure (rigid fit and registration, definitions of §0.2), the slice overlays, the
+//! per structure (rigid fit and registration, definitions in docs/metrics.md), the slice overlays, the
 //! histograms of signed distances, the convergence curve of the deformable stage, and the
 //! package's mechanics against the atlas (verdict, transfer function and static-pressure charts).
 

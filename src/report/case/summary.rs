@@ -1,5 +1,5 @@
 //! The top of the case report: the verdicts a reader checks first (did the deformable stage
-//! converge, do the ossicles meet the registration targets of mechanics-metrics.md §0.2) and
+//! converge, do the ossicles meet the registration targets of docs/metrics.md) and
 //! the case summary: image geometry, side and its source, atlas, landmark residuals of the
 //! rigid fit and the landmark checks' warnings, rigid scale, deformable status and the time of each stage.
 

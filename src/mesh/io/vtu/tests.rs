@@ -99,8 +99,8 @@ fn reads_sofa_ossicles() {
     assert_eq!((m.nodes.len(), m.tets.len()), (1733, 5058));
     assert_eq!(m.inverted_count(), 0);
     assert!((m.volume() - 27.15).abs() < 0.01, "{}", m.volume());
-    // Independent facts from the data README: 3412 boundary triangles, 18 non-manifold
-    // edges, Euler characteristic −3.
+    // Independent facts about the file (docs/anatomy.md, "Test anatomy"): 3412 boundary
+    // triangles, 18 non-manifold edges, Euler characteristic −3.
     let b = m.boundary(BoundaryOf::Whole);
     assert_eq!(b.surface.triangles.len(), 3412);
     let topo = surface_topology(&b.surface);

@@ -22,34 +22,19 @@ use super::image_check::{ImageCheck, SwapEvidence};
 use super::{LandmarkError, LandmarkName, Landmarks};
 use crate::image::Sampler;
 
-/// Tolerances and anatomical bands of the landmark checks (`[landmarks]` in pipeline.toml).
+/// Tolerances and anatomical bands of the landmark checks (`[landmarks]` in pipeline.toml,
+/// which holds the defaults). The bands, how each was built and their sources are in
+/// docs/anatomy.md, "Landmark distance bands":
 ///
-/// Default bands (docs/anatomy.md has the derivation and the sources):
-///
-/// | distance | typical [mm] | possible [mm] |
-/// |---|---|---|
-/// | umbo-IMJ | 4.3-6.6 | 4.0-8.0 |
-/// | umbo-ISJ | 2.1-4.4 | 1.5-5.0 |
-/// | IMJ-ISJ | 4.0-5.5 | 3.5-7.2 |
-///
-/// *Typical*: what the five real chains measured for issue 20 and SOFA's chain span, and the
-/// atlas's triangle scaled by 0.9-1.1 (ossicle dimensions vary by about ±10 % at ±2 SD), each
+/// *Typical* (outside it, a warning): what real chains and SOFA's chain span, and the atlas's
+/// triangle scaled by 0.9-1.1 (ossicle dimensions vary by about ±10 % at ±2 SD), each end
 /// widened by 0.3 mm (a landmark is picked to about one 0.3 mm voxel).
 ///
-/// *Possible*: bounds set by ossicle dimensions where one bone spans the distance. The umbo-IMJ
-/// distance runs along the malleus from the tip of the manubrium to the joint on the head: it
-/// is longer than the manubrium (4.47 mm, ±2 SD 4.03-5.03 mm over 53 CBCT scans; the JHU
-/// statistical shape model) and shorter than the whole malleus (mean lengths 7.2-8.05 mm in
-/// series of 40-94 bones; Godson, Mudhol, Vinayachandra), whose head rises above the joint's
-/// centre. The IMJ-ISJ distance runs along the incus from the joint face of its body to the
-/// lenticular process: shorter than the incus's greatest length (6.51 ± 0.32 mm, n = 23, +2 SD
-/// = 7.15 mm) and close to the long process (5.35 ± 0.25 mm, n = 23); the real chains and
-/// SOFA's are 0.25-1.05 mm shorter than the mean long process, so 3.5 mm leaves more than
-/// 1.3 mm below its -2 SD length. The umbo-ISJ distance spans two bones and depends on how the
-/// chain is articulated, which varies most between people (the IMJ angle is the second mode of
-/// incus shape variation in a 53-bone shape model; Omar); no study reports it, so its possible
-/// band is the typical band widened by 0.6 mm each way (about twice the ±2 SD spread of
-/// ossicle dimensions, ±10 %, at these lengths).
+/// *Possible* (outside it, refused): bounds set by ossicle dimensions where one bone spans the
+/// distance (the malleus for umbo-IMJ, the incus for IMJ-ISJ); umbo-ISJ spans two bones and
+/// depends on how the chain is articulated, so its possible band is the typical band widened
+/// by 0.6 mm each way, and up to 5.0 mm so that an ISJ picked at the stapes neck is a warning,
+/// not a refusal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CheckConfig {

@@ -56,8 +56,8 @@ fn the_atlas_passes_without_warning() {
     }
 }
 
-/// Issue 20: five real chains measure umbo-IMJ 5.2-6.3, umbo-ISJ 2.4-2.9, IMJ-ISJ 4.4-5.1
-/// mm; SOFA's 5.50 / 2.97 / 3.98 mm. Every corner of that box passes; only the flattest
+/// Five real chains measure umbo-IMJ 5.2-6.3, umbo-ISJ 2.4-2.9, IMJ-ISJ 4.4-5.1 mm
+/// (docs/anatomy.md, "Landmark distance bands"); SOFA's 5.50 / 2.97 / 3.98 mm. Every corner of that box passes; only the flattest
 /// corners (smallest height under 1.5 mm) are warned about.
 #[test]
 fn real_chains_pass() {
@@ -75,7 +75,7 @@ fn real_chains_pass() {
         }
     }
     assert_eq!(check(&triangle(5.50, 2.97, 3.98)).unwrap(), vec![]);
-    // the case issue 20 quotes as refused: umbo-ISJ 2.87 mm
+    // a real case an earlier release refused: umbo-ISJ 2.87 mm
     assert_eq!(check(&triangle(5.6, 2.87, 4.6)).unwrap(), vec![]);
 }
 
