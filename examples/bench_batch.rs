@@ -14,7 +14,6 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cases: u64 = std::env::args().nth(1).map_or(Ok(20), |s| s.parse())?;
-    otoatlas::progress::set_quiet(true);
     let config = Config::default_config()?;
     let dir = tempfile::tempdir()?;
     let options = PhantomOptions {
@@ -37,7 +36,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             keep_phi: false,
         };
         let t = std::time::Instant::now();
-        let statuses = run_batch(&cohort, &opts, &config)?;
+        let statuses = run_batch(&cohort, &opts, &config, &otoatlas::progress::Silent)?;
         let seconds = t.elapsed().as_secs_f64();
         wall.push(seconds);
         let failed = statuses

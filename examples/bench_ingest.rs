@@ -17,7 +17,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let repeats: usize = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(5);
     let cfg = Config::default_config()?;
-    otoatlas::progress::set_quiet(true);
     let mut times = Vec::new();
     let mut megabytes = 0.0;
     for _ in 0..repeats {

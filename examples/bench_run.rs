@@ -13,7 +13,6 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let repeats: usize = std::env::args().nth(1).map_or(Ok(5), |s| s.parse())?;
-    otoatlas::progress::set_quiet(true);
     let config = Config::default_config()?;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = tempfile::tempdir()?;
@@ -40,7 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut spacing = 0.0;
         for _ in 0..repeats {
             let t = std::time::Instant::now();
-            let summary = run_case(&case, &opts, &config)?;
+            let summary = run_case(&case, &opts, &config, &otoatlas::progress::Silent)?;
             per_stage[names.len()].push(t.elapsed().as_secs_f64());
             for (step, secs) in summary.timings {
                 if let Some(k) = names.iter().position(|n| *n == step) {

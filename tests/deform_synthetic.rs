@@ -16,6 +16,7 @@ use otoatlas::mesh::tet::BoundaryOf;
 use otoatlas::mesh::{TetMesh, TriMesh, shapes};
 use otoatlas::meshdev::{CompareOptions, compare};
 use otoatlas::phantom::imaging::{Grid, ImagingParams, render};
+use otoatlas::progress::Silent;
 use otoatlas::register::deform::{
     DeformConfig, ProbeConfig, ProbeKind, ProbeTriangle, deform, probe,
 };
@@ -75,7 +76,7 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         .unwrap()
         .distances;
 
-    let result = deform(&model, &probes, &sampler, 0.2, &cfg).unwrap();
+    let result = deform(&model, &probes, &sampler, 0.2, &cfg, &Silent).unwrap();
     let after = compare(&surface(&result.positions), &truth, &options)
         .unwrap()
         .distances;

@@ -16,7 +16,7 @@ use crate::atlas::surfaces::{SurfaceBuild, build_from_surfaces};
 use crate::atlas::volume::{DEFAULT_EDGE_MM, FINE_EDGE_MM};
 use crate::atlas::{Anatomy, Atlas, build_atlas, load_atlas, write_atlas};
 use crate::ear::Side;
-use crate::progress;
+use crate::progress::Reporter;
 
 /// Build, describe or export the mechanical atlas.
 #[derive(Debug, Args)]
@@ -127,16 +127,16 @@ pub struct BuildArgs {
     pub out: PathBuf,
 }
 
-pub fn run(args: &AtlasArgs) -> Result<Report, Error> {
+pub fn run(args: &AtlasArgs, progress: &dyn Reporter) -> Result<Report, Error> {
     match &args.command {
-        AtlasCommand::Build(b) => build(b),
+        AtlasCommand::Build(b) => build(b, progress),
         AtlasCommand::Info(s) => info(s),
         AtlasCommand::Export(e) => export(e),
         AtlasCommand::Import(i) => import(i),
     }
 }
 
-fn build(args: &BuildArgs) -> Result<Report, Error> {
+fn build(args: &BuildArgs, progress: &dyn Reporter) -> Result<Report, Error> {
     let edge = if args.fine { FINE_EDGE_MM } else { args.edge };
     for (name, v) in [("--edge", edge), ("--membrane-edge", args.membrane_edge)] {
         if !(v.is_finite() && (0.02..=2.0).contains(&v)) {
@@ -145,7 +145,7 @@ fn build(args: &BuildArgs) -> Result<Report, Error> {
             )));
         }
     }
-    progress::log(format!("atlas build: meshing at {edge} mm"));
+    progress.log(&format!("atlas build: meshing at {edge} mm"));
     let atlas = match (&args.surfaces, &args.landmarks) {
         (Some(dir), Some(landmarks)) => build_from_surfaces(&SurfaceBuild {
             dir,

@@ -13,6 +13,7 @@ use crate::pipeline::batch::{BatchOptions, Outcome, run_batch};
 use crate::pipeline::cohort::{Shard, read_cohort};
 use crate::pipeline::cohort_summary::{merge_cohort, write_case_list};
 use crate::pipeline::sbatch::{SbatchSpec, sbatch_script};
+use crate::progress::Reporter;
 
 /// Register a cohort: every case through `run`, in parallel, each into OUT/cases/ID/, with a
 /// cohort report.
@@ -83,11 +84,15 @@ fn absolute(path: &Path) -> Result<PathBuf, Error> {
     })
 }
 
-pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error> {
+pub fn run(
+    args: &BatchArgs,
+    config_path: Option<&Path>,
+    progress: &dyn Reporter,
+) -> Result<Report, Error> {
     let config = Config::load(config_path)?;
     let cohort = read_cohort(&args.cohort)?;
     for skip in &cohort.skipped {
-        crate::progress::log(format!(
+        progress.log(&format!(
             "not a case: {}/{}: {}",
             args.cohort.display(),
             skip.name,
@@ -151,7 +156,7 @@ pub fn run(args: &BatchArgs, config_path: Option<&Path>) -> Result<Report, Error
         atlas: args.atlas.clone(),
         keep_phi: args.keep_phi,
     };
-    let statuses = run_batch(&selected, &opts, &config)?;
+    let statuses = run_batch(&selected, &opts, &config, progress)?;
     let failed: Vec<_> = statuses
         .iter()
         .filter(|s| s.outcome == Outcome::Failed)

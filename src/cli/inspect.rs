@@ -8,6 +8,7 @@ use serde_json::json;
 
 use super::Report;
 use crate::config::Config;
+use crate::progress::Reporter;
 use crate::{Error, image};
 
 /// Read a CBCT volume (DICOM folder, multi-frame DICOM file, or NIfTI) and describe it.
@@ -29,9 +30,14 @@ pub struct InspectArgs {
     pub json: bool,
 }
 
-pub fn run(args: &InspectArgs, config: Option<&Path>) -> Result<Report, Error> {
+pub fn run(
+    args: &InspectArgs,
+    config: Option<&Path>,
+    progress: &dyn Reporter,
+) -> Result<Report, Error> {
     let config = Config::load(config)?;
-    let loaded = image::load(&args.path, args.series.as_deref(), &config.ingest)?;
+    let loaded =
+        image::load_reporting(&args.path, args.series.as_deref(), &config.ingest, progress)?;
     let v = &loaded.volume;
     let info = &loaded.info;
     let (hu_min, hu_max) = v.value_range().unwrap_or((f32::NAN, f32::NAN));

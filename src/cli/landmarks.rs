@@ -7,13 +7,14 @@ use clap::Args;
 use serde_json::json;
 
 use super::Report;
+use crate::Error;
 use crate::config::Config;
 use crate::ear::{Side, write_fcsv, write_json};
 use crate::image::{self, Sampler};
 use crate::io_util::write_atomic;
 use crate::pipeline::Case;
+use crate::progress::Reporter;
 use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
-use crate::{Error, progress};
 
 /// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel
 /// indices) and save them as Slicer .fcsv and our .json.
@@ -57,10 +58,14 @@ fn out_paths(args: &LandmarksArgs, case: &Case) -> (PathBuf, PathBuf) {
     }
 }
 
-pub fn run(args: &LandmarksArgs, config: Option<&Path>) -> Result<Report, Error> {
+pub fn run(
+    args: &LandmarksArgs,
+    config: Option<&Path>,
+    progress: &dyn Reporter,
+) -> Result<Report, Error> {
     let config = Config::load(config)?;
     let case = Case::open(&args.case)?;
-    let loaded = image::load(&case.image, None, &config.ingest)?;
+    let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
     let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
             "{}: the image geometry is degenerate",
@@ -93,12 +98,12 @@ pub fn run(args: &LandmarksArgs, config: Option<&Path>) -> Result<Report, Error>
         &config.landmarks,
     )?;
     for warning in &warnings {
-        progress::log(format!("landmark warning: {warning}"));
+        progress.log(&format!("landmark warning: {warning}"));
     }
     let (fcsv, json_path) = out_paths(args, &case);
     write_atomic(&fcsv, write_fcsv(&input).as_bytes())?;
     write_atomic(&json_path, write_json(&input, side).as_bytes())?;
-    progress::log(format!(
+    progress.log(&format!(
         "wrote {} and {}",
         fcsv.display(),
         json_path.display()

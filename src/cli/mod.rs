@@ -8,6 +8,7 @@ mod inspect;
 mod landmarks;
 mod package_arg;
 mod phantom;
+mod progress;
 mod run;
 mod simulate;
 mod validate;
@@ -18,7 +19,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{Error, progress};
+use crate::Error;
+use progress::Terminal;
 
 /// otoatlas: register a validated middle-ear mechanical atlas onto a patient's cone-beam CT
 /// and export a ready-to-simulate finite-element model.
@@ -67,7 +69,6 @@ pub fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
-    progress::set_quiet(cli.quiet);
     let json = match &cli.command {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,
@@ -80,14 +81,15 @@ pub fn main() -> ExitCode {
         Command::Simulate(a) => a.json,
         Command::Verify(a) => a.json,
     };
+    let terminal = Terminal::new(cli.quiet);
     let result = match &cli.command {
-        Command::Inspect(a) => inspect::run(a, cli.config.as_deref()),
-        Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref()),
-        Command::Atlas(a) => atlas::run(a),
-        Command::Run(a) => run::run(a, cli.config.as_deref()),
-        Command::Batch(a) => batch::run(a, cli.config.as_deref()),
+        Command::Inspect(a) => inspect::run(a, cli.config.as_deref(), &terminal),
+        Command::Landmarks(a) => landmarks::run(a, cli.config.as_deref(), &terminal),
+        Command::Atlas(a) => atlas::run(a, &terminal),
+        Command::Run(a) => run::run(a, cli.config.as_deref(), &terminal),
+        Command::Batch(a) => batch::run(a, cli.config.as_deref(), &terminal),
         Command::CohortReport(a) => batch::cohort_report(a),
-        Command::Phantom(a) => phantom::run(a),
+        Command::Phantom(a) => phantom::run(a, &terminal),
         Command::Validate(a) => validate::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Verify(a) => verify::run(a),

@@ -8,12 +8,13 @@ use clap::Args;
 use serde_json::json;
 
 use super::Report;
+use crate::Error;
 use crate::phantom::{
     ChainAnatomy, ChainPhantoms, PhantomError, PhantomOptions, generate_case, generate_chain_case,
     write_case,
 };
+use crate::progress::Reporter;
 use crate::register::Side;
-use crate::{Error, progress};
 
 /// Make synthetic temporal-bone CBCT cases (DICOM + NIfTI, landmarks, true surfaces and label
 /// map, truth.json) from seeded variations of the atlas, or around a real ossicular chain.
@@ -76,7 +77,7 @@ fn check_writable(dir: &Path) -> Result<(), Error> {
     std::fs::remove_file(&probe).map_err(unwritable)
 }
 
-pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
+pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error> {
     if args.cases == 0 {
         return Err(Error::Usage("--cases 0: expected at least one case".into()));
     }
@@ -96,7 +97,7 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
         .map_err(PhantomError::from)?
         .map(ChainPhantoms::new);
     check_writable(&args.out)?;
-    let bar = progress::Progress::new("phantom", u64::from(args.cases));
+    let bar = progress.task("phantom", u64::from(args.cases));
     let mut text = String::new();
     let mut cases = Vec::new();
     for k in 1..=u64::from(args.cases) {
@@ -127,10 +128,10 @@ pub fn run(args: &PhantomArgs) -> Result<Report, Error> {
             "dims": t.image.dims,
             "seconds": seconds,
         }));
-        bar.message(format!("case-{k:03} written"));
+        bar.message(&format!("case-{k:03} written"));
         bar.inc(1);
     }
-    bar.finish(format!("{} case(s) in {}", args.cases, args.out.display()));
+    bar.finish(&format!("{} case(s) in {}", args.cases, args.out.display()));
     Ok(Report {
         text,
         json: json!({ "out": args.out, "cases": cases }),

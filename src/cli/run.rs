@@ -10,6 +10,7 @@ use crate::Error;
 use crate::config::Config;
 use crate::ear::Side;
 use crate::pipeline::{Case, RunOptions, Stage, run_case};
+use crate::progress::Reporter;
 
 /// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
 /// segmentation), export; then validate the package's mechanics against the atlas
@@ -56,7 +57,11 @@ pub struct RunArgs {
     pub json: bool,
 }
 
-pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
+pub fn run(
+    args: &RunArgs,
+    config: Option<&Path>,
+    progress: &dyn Reporter,
+) -> Result<Report, Error> {
     let config = Config::load(config)?;
     let case = Case::open(&args.case)?;
     let opts = RunOptions {
@@ -67,7 +72,7 @@ pub fn run(args: &RunArgs, config: Option<&Path>) -> Result<Report, Error> {
         side: args.side,
         keep_phi: args.keep_phi,
     };
-    let summary = run_case(&case, &opts, &config)?;
+    let summary = run_case(&case, &opts, &config, progress)?;
     let m = &summary.metrics;
     let mut text = String::new();
     let _ = writeln!(

@@ -11,6 +11,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::progress::Reporter;
+
 pub use error::ImageError;
 pub use sample::Sampler;
 pub use volume::Volume;
@@ -112,11 +114,22 @@ impl ImageRecord {
 }
 
 /// Reads `path`: a NIfTI file (`.nii`, `.nii.gz`), a DICOM file (single- or multi-frame), or a
-/// folder searched recursively for a DICOM series (`series` chooses among several).
+/// folder searched recursively for a DICOM series (`series` chooses among several). Reports
+/// nothing; see [`load_reporting`].
 pub fn load(
     path: &Path,
     series: Option<&str>,
     cfg: &IngestConfig,
+) -> Result<LoadedImage, ImageError> {
+    load_reporting(path, series, cfg, &crate::progress::Silent)
+}
+
+/// [`load`], reporting the DICOM scan and decode and the files skipped to `progress`.
+pub fn load_reporting(
+    path: &Path,
+    series: Option<&str>,
+    cfg: &IngestConfig,
+    progress: &dyn Reporter,
 ) -> Result<LoadedImage, ImageError> {
     if !path.exists() {
         return Err(ImageError::NotFound {
@@ -126,5 +139,5 @@ pub fn load(
     if path.is_file() && nifti::is_nifti_path(path) {
         return nifti::read_nifti(path, cfg);
     }
-    dicom::read_dicom(path, series, cfg)
+    dicom::read_dicom(path, series, cfg, progress)
 }

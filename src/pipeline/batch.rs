@@ -14,11 +14,12 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Case, RunOptions, Stage, run_case};
+use crate::Error;
 use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
 use crate::export::{atlas_sha256, verify_package};
 use crate::io_util::write_atomic;
-use crate::{Error, progress};
+use crate::progress::Reporter;
 
 /// What `batch` is asked to do besides the cases and the configuration.
 #[derive(Debug, Clone)]
@@ -69,27 +70,29 @@ pub fn run_batch(
     cases: &[Case],
     opts: &BatchOptions,
     config: &Config,
+    progress: &dyn Reporter,
 ) -> Result<Vec<CaseStatus>, Error> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(opts.jobs.max(1))
         .build()
         .map_err(|e| Error::Usage(format!("--jobs {}: {e}", opts.jobs)))?;
-    let display = progress::Cohort::start(cases.len() as u64);
+    progress.cohort_started(cases.len() as u64);
     let statuses = pool.install(|| {
         cases
             .par_iter()
             .map(|case| {
-                let status = run_one(case, opts, config, &display);
+                let status = run_one(case, opts, config, progress);
                 let outcome = match (&status.outcome, &status.error) {
                     (Outcome::Failed, Some(e)) => format!("FAILED: {e}"),
                     (Outcome::Resumed, _) => "complete already, skipped (--resume)".into(),
                     _ => format!("done in {:.1} s", status.seconds),
                 };
-                display.case_finished(&case.id, &outcome);
+                progress.case_finished(&case.id, &outcome);
                 status
             })
             .collect::<Vec<_>>()
     });
+    progress.cohort_finished();
     Ok(statuses)
 }
 
@@ -97,7 +100,7 @@ fn run_one(
     case: &Case,
     opts: &BatchOptions,
     config: &Config,
-    display: &progress::Cohort,
+    progress: &dyn Reporter,
 ) -> CaseStatus {
     let out = case_dir(&opts.out, &case.id);
     if opts.resume && is_complete(case, &out, opts, config) {
@@ -114,7 +117,7 @@ fn run_one(
                 seconds: 0.0,
             };
             if let Err(e) = write_status(&opts.out, &recovered) {
-                progress::log(format!("{}: cannot record its status: {e}", case.id));
+                progress.log(&format!("{}: cannot record its status: {e}", case.id));
             }
         }
         return CaseStatus {
@@ -124,7 +127,7 @@ fn run_one(
             seconds: 0.0,
         };
     }
-    display.case_started(&case.id);
+    progress.case_started(&case.id);
     let started = Instant::now();
     let run_opts = RunOptions {
         out: out.clone(),
@@ -135,7 +138,9 @@ fn run_one(
         keep_phi: opts.keep_phi,
     };
     // a panic in one case is that case's failure, never the cohort's
-    let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_case(case, &run_opts, config)));
+    let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        run_case(case, &run_opts, config, progress)
+    }));
     let error = match result {
         Ok(Ok(_)) => None,
         Ok(Err(e)) => Some(e.to_string()),
@@ -159,7 +164,7 @@ fn run_one(
         seconds: started.elapsed().as_secs_f64(),
     };
     if let Err(e) = write_status(&opts.out, &status) {
-        progress::log(format!("{}: cannot record its status: {e}", case.id));
+        progress.log(&format!("{}: cannot record its status: {e}", case.id));
     }
     status
 }

@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::Case;
 use super::score::{Reference, StructureScore, score};
 use super::stage::Stage;
+use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
@@ -32,7 +33,10 @@ use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
 use crate::pipeline::mechanics::validate_registered;
-use crate::register::atlas_fit::{DeformRecord, LevelSeconds, deform_atlas, fit_landmarks, place};
+use crate::progress::Reporter;
+use crate::register::atlas_fit::{
+    DeformRecord, DeformSettings, LevelSeconds, deform_atlas, fit_landmarks, place,
+};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
     ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_landmarks_on_image,
@@ -43,7 +47,6 @@ use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
 };
 use crate::report::{Accuracy, CaseReportInput, case_report_html};
-use crate::{Error, progress};
 
 /// What `run` is asked to do besides the case and the configuration.
 #[derive(Debug, Clone)]
@@ -169,16 +172,13 @@ fn run_or_resume<T: Serialize + DeserializeOwned>(
 }
 
 /// The patient's landmarks: `--landmarks`, the case's file, or the prompt on a terminal.
-fn landmark_input(
-    case: &Case,
-    opts: &RunOptions,
-    sampler: &Sampler,
-) -> Result<LandmarkFile, Error> {
+fn landmark_input(cx: Context, sampler: &Sampler) -> Result<LandmarkFile, Error> {
+    let (case, opts, progress) = (cx.case, cx.opts, cx.progress);
     if let Some(path) = opts.landmarks.as_ref().or(case.landmarks.as_ref()) {
         return Ok(read_landmarks(path)?);
     }
     if std::io::stdin().is_terminal() {
-        progress::log("no landmark file: type the three landmarks");
+        progress.log("no landmark file: type the three landmarks");
         let landmarks = prompt_landmarks(PromptInput::Terminal, sampler)?;
         return Ok(LandmarkFile {
             landmarks,
@@ -217,6 +217,15 @@ fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
         removed.map_err(crate::io_util::io_err(&path))?;
     }
     Ok(())
+}
+
+/// What every stage of one run reads.
+#[derive(Clone, Copy)]
+struct Context<'a> {
+    case: &'a Case,
+    opts: &'a RunOptions,
+    config: &'a Config,
+    progress: &'a dyn Reporter,
 }
 
 /// The image as the later stages use it.
@@ -259,27 +268,36 @@ struct ExportRecord {
     files: Vec<String>,
 }
 
-/// Runs `case` through the pipeline.
-pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSummary, Error> {
+/// Runs `case` through the pipeline, reporting to `progress`.
+pub fn run_case(
+    case: &Case,
+    opts: &RunOptions,
+    config: &Config,
+    progress: &dyn Reporter,
+) -> Result<RunSummary, Error> {
+    let cx = Context {
+        case,
+        opts,
+        config,
+        progress,
+    };
     let out = &opts.out;
     let started = Instant::now();
     let mut clock = Clock::default();
     remove_previous_outputs(out)?;
 
-    let ingested = ingest(case, opts, config, &mut clock)?;
+    let ingested = ingest(cx, &mut clock)?;
     let sampler = Sampler::new(&ingested.loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
             "{}: the image geometry is degenerate",
             case.image.display()
         ))
     })?;
-    let placed = landmarks(case, opts, config, &ingested, &sampler, &mut clock)?;
-    let fit = rigid(case, opts, config, &placed, &mut clock)?;
+    let placed = landmarks(cx, &ingested, &sampler, &mut clock)?;
+    let fit = rigid(cx, &placed, &mut clock)?;
     let rigid_nodes = place(&placed.atlas, &fit);
     let deformed = deform(
-        case,
-        opts,
-        config,
+        cx,
         &placed.atlas,
         &rigid_nodes,
         &sampler,
@@ -287,31 +305,15 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
         &mut clock,
     )?;
     let scored = score_case(
-        case,
-        opts,
-        config,
+        cx,
         &placed.atlas,
         &rigid_nodes,
         &deformed.nodes,
         ingested.step,
         &mut clock,
     )?;
-    export(
-        case,
-        out,
-        &placed.atlas,
-        &deformed.nodes,
-        &scored,
-        &mut clock,
-    )?;
-    let validation = validate(
-        case,
-        out,
-        config,
-        &placed.atlas,
-        &deformed.nodes,
-        &mut clock,
-    )?;
+    export(cx, &placed.atlas, &deformed.nodes, &scored, &mut clock)?;
+    let validation = validate(cx, &placed.atlas, &deformed.nodes, &mut clock)?;
     let metrics = CaseMetrics {
         case: case.id.clone(),
         side: placed.side,
@@ -398,16 +400,17 @@ pub fn run_case(case: &Case, opts: &RunOptions, config: &Config) -> Result<RunSu
 
 /// Ingest: always read (the later stages need the voxels); on resume, the image must be the
 /// one the earlier run saw.
-fn ingest(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
-    clock: &mut Clock,
-) -> Result<Ingested, Error> {
-    progress::case_stage(&case.id, Stage::Ingest.name());
+fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
+    let Context {
+        case,
+        opts,
+        config,
+        progress,
+    } = cx;
+    progress.case_stage(&case.id, Stage::Ingest.name());
     let t = Instant::now();
-    progress::log(format!("{}: ingest {}", case.id, case.image.display()));
-    let loaded = image::load(&case.image, None, &config.ingest)?;
+    progress.log(&format!("{}: ingest {}", case.id, case.image.display()));
+    let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
     let record = ImageRecord::of(&loaded, &case.image);
     if opts.from <= Stage::Ingest {
         write_record(&artefact_path(&opts.out, Stage::Ingest), &record)?;
@@ -438,18 +441,22 @@ fn ingest(
 /// Landmarks and side: read (or prompted), checked against the image, the atlas mirrored to
 /// the side.
 fn landmarks(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
+    cx: Context,
     ingested: &Ingested,
     sampler: &Sampler,
     clock: &mut Clock,
 ) -> Result<Placed, Error> {
-    progress::case_stage(&case.id, Stage::Landmarks.name());
+    let Context {
+        case,
+        opts,
+        config,
+        progress,
+    } = cx;
+    progress.case_stage(&case.id, Stage::Landmarks.name());
     let out = &opts.out;
     let t = Instant::now();
     let file = if opts.from <= Stage::Landmarks {
-        landmark_input(case, opts, sampler)?
+        landmark_input(cx, sampler)?
     } else {
         read_landmarks(&artefact_path(out, Stage::Landmarks))?
     };
@@ -480,7 +487,7 @@ fn landmarks(
         })?;
     warnings.extend(side_warning);
     for warning in &warnings {
-        progress::log(format!("{}: landmark warning: {warning}", case.id));
+        progress.log(&format!("{}: landmark warning: {warning}", case.id));
     }
     if opts.from <= Stage::Landmarks {
         write_atomic(
@@ -489,7 +496,7 @@ fn landmarks(
         )?;
         clock.record(Stage::Landmarks.name(), t);
     }
-    progress::log(format!(
+    progress.log(&format!(
         "{}: {} ear (from the {side_source}), atlas '{}'",
         case.id,
         side.as_str(),
@@ -505,14 +512,14 @@ fn landmarks(
 }
 
 /// The rigid (or similarity) fit of the atlas landmarks onto the patient's.
-fn rigid(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
-    placed: &Placed,
-    clock: &mut Clock,
-) -> Result<RigidFit, Error> {
-    progress::case_stage(&case.id, Stage::Rigid.name());
+fn rigid(cx: Context, placed: &Placed, clock: &mut Clock) -> Result<RigidFit, Error> {
+    let Context {
+        case,
+        opts,
+        config,
+        progress,
+    } = cx;
+    progress.case_stage(&case.id, Stage::Rigid.name());
     let with_scale = config.rigid.with_scale;
     let record: RigidRecord = run_or_resume(&opts.out, opts.from, Stage::Rigid, clock, || {
         let fit = fit_landmarks(&placed.atlas, &placed.patient, with_scale).ok_or_else(|| {
@@ -521,7 +528,7 @@ fn rigid(
         Ok(RigidRecord::of(&fit, with_scale))
     })?;
     let fit = record.fit();
-    progress::log(format!(
+    progress.log(&format!(
         "{}: rigid fit, scale {:.3}, landmark RMS {:.3} mm",
         case.id, fit.transform.scale, fit.rms_mm
     ));
@@ -530,35 +537,35 @@ fn rigid(
 
 /// The deformable stage (per-ossicle poses, FEM levels, surface level, eardrum); on resume,
 /// its record and `stages/deform.vtu`.
-#[allow(clippy::too_many_arguments)]
 fn deform(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
+    cx: Context,
     atlas: &Atlas,
     rigid_nodes: &[Point3<f64>],
     sampler: &Sampler,
     step: f64,
     clock: &mut Clock,
 ) -> Result<Deformed, Error> {
-    progress::case_stage(&case.id, Stage::Deform.name());
+    let Context {
+        case,
+        opts,
+        config,
+        progress,
+    } = cx;
+    progress.case_stage(&case.id, Stage::Deform.name());
     let deform_vtu = opts.out.join("stages").join("deform.vtu");
     let mut resumed = true;
     let mut level_seconds = None;
     let mut nodes = Vec::new();
     let record: DeformRecord = run_or_resume(&opts.out, opts.from, Stage::Deform, clock, || {
         resumed = false;
-        let registered = deform_atlas(
-            atlas,
-            rigid_nodes,
-            sampler,
-            step,
-            &config.articulate,
-            &config.deform,
-            &config.refine,
-        )?;
+        let settings = DeformSettings {
+            articulate: &config.articulate,
+            deform: &config.deform,
+            refine: &config.refine,
+        };
+        let registered = deform_atlas(atlas, rigid_nodes, sampler, step, settings, progress)?;
         if let DeformStatus::InversionGuard { message } = &registered.deform.status {
-            progress::log(format!(
+            progress.log(&format!(
                 "{}: deformable stage stopped at its last valid state: {message}",
                 case.id
             ));
@@ -590,18 +597,21 @@ fn deform(
 }
 
 /// Scores the rigid and the registered atlas against the case's segmentation, when it has one.
-#[allow(clippy::too_many_arguments)]
 fn score_case(
-    case: &Case,
-    opts: &RunOptions,
-    config: &Config,
+    cx: Context,
     atlas: &Atlas,
     rigid_nodes: &[Point3<f64>],
     nodes: &[Point3<f64>],
     step: f64,
     clock: &mut Clock,
 ) -> Result<Option<Scored>, Error> {
-    progress::case_stage(&case.id, Stage::Score.name());
+    let Context {
+        case,
+        opts,
+        config,
+        progress,
+    } = cx;
+    progress.case_stage(&case.id, Stage::Score.name());
     let Some(segmentation) = &case.segmentation else {
         return Ok(None);
     };
@@ -641,14 +651,14 @@ fn scores_of(
 /// The registered atlas's surfaces, volume and landmarks, and each scored structure's
 /// deviation map, under `OUT/registered/`.
 fn export(
-    case: &Case,
-    out: &Path,
+    cx: Context,
     atlas: &Atlas,
     nodes: &[Point3<f64>],
     scored: &Option<Scored>,
     clock: &mut Clock,
 ) -> Result<(), Error> {
-    progress::case_stage(&case.id, Stage::Export.name());
+    let (case, out, progress) = (cx.case, &cx.opts.out, cx.progress);
+    progress.case_stage(&case.id, Stage::Export.name());
     let t = Instant::now();
     let registered_dir = out.join("registered");
     let mut files = export_atlas(atlas, nodes, &registered_dir)?.files;
@@ -678,22 +688,21 @@ fn export(
 /// The registered package's mechanics against the atlas (`mechanics.json`), when
 /// `[validate]` is on.
 fn validate(
-    case: &Case,
-    out: &Path,
-    config: &Config,
+    cx: Context,
     atlas: &Atlas,
     nodes: &[Point3<f64>],
     clock: &mut Clock,
 ) -> Result<Option<Validation>, Error> {
+    let (case, out, config, progress) = (cx.case, &cx.opts.out, cx.config, cx.progress);
     if !config.validate.enabled {
         // an earlier run's verdict was removed with its other outputs at the start
         return Ok(None);
     }
-    progress::case_stage(&case.id, "validate");
+    progress.case_stage(&case.id, "validate");
     let t = Instant::now();
     let v = validate_registered(atlas, nodes, &config.validate)?;
     write_record(&out.join("mechanics.json"), &v)?;
-    progress::log(format!(
+    progress.log(&format!(
         "{}: mechanics against the atlas: {} ({} of {} gates failed)",
         case.id,
         if v.verdict.passed { "pass" } else { "FAIL" },
@@ -701,7 +710,10 @@ fn validate(
         v.verdict.gates.len()
     ));
     if let Some(why) = &v.mechanics.udsp.failure {
-        progress::log(format!("{}: static pressure stopped short: {why}", case.id));
+        progress.log(&format!(
+            "{}: static pressure stopped short: {why}",
+            case.id
+        ));
     }
     clock.record("validate", t);
     Ok(Some(v))

@@ -22,6 +22,7 @@ use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
 use crate::mesh::tet::signed_volume;
+use crate::progress::Reporter;
 
 /// Fits the atlas landmarks onto the patient's; `None` when the patient's are degenerate.
 pub fn fit_landmarks(atlas: &Atlas, patient: &Landmarks, with_scale: bool) -> Option<RigidFit> {
@@ -111,6 +112,14 @@ impl Registered {
     }
 }
 
+/// The settings of the deformable stage's levels.
+#[derive(Debug, Clone, Copy)]
+pub struct DeformSettings<'a> {
+    pub articulate: &'a ArticulateConfig,
+    pub deform: &'a DeformConfig,
+    pub refine: &'a RefineConfig,
+}
+
 /// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and
 /// their connective tissue through the FEM (its rest shape the articulated atlas), then the
 /// eardrum. `step` is the probe step (the smallest voxel spacing, mm).
@@ -119,10 +128,10 @@ pub fn deform_atlas(
     placed: &[Point3<f64>],
     sampler: &Sampler,
     step: f64,
-    articulate_cfg: &ArticulateConfig,
-    cfg: &DeformConfig,
-    refine_cfg: &RefineConfig,
+    settings: DeformSettings,
+    progress: &dyn Reporter,
 ) -> Result<Registered, DeformError> {
+    let (articulate_cfg, cfg, refine_cfg) = (settings.articulate, settings.deform, settings.refine);
     let moduli = Some((cfg.regularisation_modulus_pa, cfg.min_modulus_ratio));
     let mut seconds = LevelSeconds::default();
     let clock = Instant::now();
@@ -149,7 +158,7 @@ pub fn deform_atlas(
     let mut result: Option<DeformResult> = None;
     for level_index in 0..=cfg.rest_updates {
         let model = atlas.fem_model(&rest, moduli, false)?;
-        let level = deform(&model, &probes, sampler, step, cfg)?;
+        let level = deform(&model, &probes, sampler, step, cfg, progress)?;
         // a later level may not flatten an element: the FEM only guards against inversion,
         // and each level regularises from the last one's shape
         if level_index > 0

@@ -14,7 +14,7 @@ use std::path::Path;
 use crate::image::IngestConfig;
 use crate::image::{ImageError, ImageInfo, LoadedImage, Volume};
 use crate::io_util::sha256_hex;
-use crate::progress::{self, Progress};
+use crate::progress::Reporter;
 pub use scan::{ImageFile, Rescale};
 
 /// True if any file under `dir` (recursively) carries the DICOM marker: what `run` accepts as
@@ -44,6 +44,7 @@ pub fn read_dicom(
     path: &Path,
     series: Option<&str>,
     cfg: &IngestConfig,
+    progress: &dyn Reporter,
 ) -> Result<LoadedImage, ImageError> {
     let files = if path.is_dir() {
         scan::list_files(path)?
@@ -56,7 +57,7 @@ pub fn read_dicom(
         vec![path.to_path_buf()]
     };
     let max_bytes = (cfg.max_file_mib * 1048576.0) as u64;
-    let header_bar = Progress::new("headers", files.len() as u64);
+    let header_bar = progress.task("headers", files.len() as u64);
     let scanned = scan::scan_files(&files, max_bytes)?;
     header_bar.inc(files.len() as u64);
     let mut notes = Vec::new();
@@ -66,12 +67,12 @@ pub fn read_dicom(
             scan::Scanned::Image(f) => by_series.entry(f.series_uid.clone()).or_default().push(*f),
             scan::Scanned::Skipped { path, reason } => {
                 let note = format!("skipped {}: {reason}", path.display());
-                progress::log(&note);
+                progress.log(&note);
                 notes.push(note);
             }
         }
     }
-    header_bar.finish(format!(
+    header_bar.finish(&format!(
         "{} files, {} image series",
         files.len(),
         by_series.len()
@@ -118,14 +119,14 @@ pub fn read_dicom(
     super::check_volume_budget(path, geometry.dims.map(|d| d as u64), cfg)?;
     let n_planes = geometry.dims[2] as u64;
     let mut data = vec![0f32; geometry.dims.iter().product()];
-    let bar = Progress::new("decode", n_planes);
+    let bar = progress.task("decode", n_planes);
     pixels::decode_series(&files, &geometry.order, &mut data, &|| bar.inc(1))?;
-    bar.finish(format!(
+    bar.finish(&format!(
         "{} x {} x {} voxels",
         geometry.dims[0], geometry.dims[1], geometry.dims[2]
     ));
     for w in &geometry.warnings {
-        progress::log(format!("warning: {w}"));
+        progress.log(&format!("warning: {w}"));
     }
     let first = &files[0];
     let mut syntaxes: Vec<&str> = files.iter().map(|f| f.transfer_syntax.as_str()).collect();

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fem::{ElementId, FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
 use crate::image::Sampler;
-use crate::progress::Progress;
+use crate::progress::Reporter;
 pub use probe::{Border, ProbeConfig, ProbeKind, probe};
 
 /// The mean border offset has reached a plateau when it no longer falls below (1 − this)
@@ -179,13 +179,14 @@ pub fn deform(
     sampler: &Sampler,
     step: f64,
     cfg: &DeformConfig,
+    progress: &dyn Reporter,
 ) -> Result<DeformResult, DeformError> {
     let n = model.node_count();
     let mut x: Vec<Point3<f64>> = model.rest_positions().to_vec();
     let mut solver = StaticSolver::new(model, FixedDofs::from_nodes(n, &[])?)?;
     let neighbours = triangle_neighbours(probes, n);
     let mut history = Vec::new();
-    let bar = Progress::new("deform", cfg.max_iterations as u64);
+    let bar = progress.task("deform", cfg.max_iterations as u64);
     let options = StaticOptions {
         tolerance_mm: cfg.tolerance_mm * 0.5,
         // each outer iteration probes anew, so its solve need not be exact: three Newton
@@ -274,7 +275,7 @@ pub fn deform(
             break;
         }
     }
-    bar.finish(format!("{} iterations, {:?}", history.len(), status));
+    bar.finish(&format!("{} iterations, {:?}", history.len(), status));
     Ok(DeformResult {
         positions: x,
         history,
