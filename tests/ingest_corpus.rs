@@ -337,29 +337,25 @@ fn nifti_scl_slope_is_applied() {
 }
 
 /// Decompresses `input` with a dcmtk tool (Debian package dcmtk, an independent decoder) into
-/// `output`; `None` when dcmtk is absent and not required.
+/// `output`; `None` when dcmtk is absent (see `common::program`).
 fn dcmtk(
     tool: &str,
     args: &[&str],
     input: &std::path::Path,
     output: &std::path::Path,
 ) -> Option<()> {
-    let status = std::process::Command::new(tool)
+    let status = std::process::Command::new(common::program(tool, "dcmtk")?)
         .args(args)
         .arg(input)
         .arg(output)
-        .status();
-    match status {
-        Ok(s) if s.success() => Some(()),
-        Ok(s) => panic!("{tool} failed ({s}) on {}", input.display()),
-        Err(_) if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") => {
-            panic!("{tool} (dcmtk) is required: apt-get install dcmtk")
-        }
-        Err(_) => {
-            eprintln!("skipped: {tool} (dcmtk) not installed");
-            None
-        }
-    }
+        .status()
+        .unwrap_or_else(|e| panic!("run {tool}: {e}"));
+    assert!(
+        status.success(),
+        "{tool} failed ({status}) on {}",
+        input.display()
+    );
+    Some(())
 }
 
 #[test]

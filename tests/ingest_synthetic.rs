@@ -413,7 +413,7 @@ fn pydicom_and_nibabel_read_what_we_write() {
     });
     let exp = dir.path().join("expected.json");
     fs::write(&exp, expected.to_string()).unwrap();
-    common::python_check(
+    common::python::run_python(
         "check_volume.py",
         &[
             exp.to_str().unwrap(),

@@ -4,10 +4,7 @@
 //! directed means, maxima and P95 must agree with ours within 1 % (per-sample distances to
 //! 1e-6 mm).
 
-mod common {
-    pub mod python;
-    pub mod trimesh_io;
-}
+mod common;
 
 use nalgebra::Point3;
 use otoatlas::config::Config;
