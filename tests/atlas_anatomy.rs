@@ -4,9 +4,6 @@
 //! ossicular chain in `../shared/anatomy` (skipped when absent, a failure when
 //! `OTOATLAS_REQUIRE_SHARED=1`).
 
-mod common;
-
-#[path = "atlas_anatomy/calibration.rs"]
 mod calibration;
 
 use nalgebra::{Point3, Vector3};

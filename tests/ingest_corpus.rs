@@ -3,9 +3,8 @@
 //! 3.0.2 and nibabel 5.4.2 and are recorded here; compressed files are compared voxel by
 //! voxel with their uncompressed twins.
 
-mod common;
-
-use common::{assert_close, otoatlas_json, testdata};
+use crate::common;
+use crate::common::{assert_close, otoatlas_json, testdata};
 use otoatlas::config::Config;
 use otoatlas::image::{self, ImageError, LoadedImage};
 

@@ -2,12 +2,11 @@
 //! exactly for shuffled, oblique, tilted and per-slice-rescaled series; and the bad-input
 //! matrix, each case a clear error with exit code 2 and never a panic.
 
-mod common;
-
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use common::{assert_close, otoatlas, otoatlas_json};
+use crate::common;
+use crate::common::{assert_close, otoatlas, otoatlas_json};
 use dicom_core::{DataElement, PrimitiveValue, VR};
 use dicom_dictionary_std::tags;
 use nalgebra::{Matrix3, Rotation3, Vector3};

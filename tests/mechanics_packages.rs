@@ -9,8 +9,7 @@
 //! (Higher frequencies also follow the patient's size, which the ±10 % phantoms vary.)
 //! `run` stores the package's validation in its manifest and report, unless switched off.
 
-mod common;
-
+use crate::common;
 use otoatlas::atlas::{default_atlas, read_atlas};
 use otoatlas::mechanics::{MechanicalSystem, TfaOptions, TransferFunction, transfer_function};
 

@@ -8,13 +8,12 @@
 //! any output without `--keep-phi`, and it does with it; a package replaced by a later run
 //! (resumed `--from deform`) is whole and equal to a fresh one.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use common::python::run_python;
+use crate::common;
+use crate::common::python::run_python;
 use serde_json::Value;
 
 /// Runs case-001 into `out` (with extra flags) and returns the package folder.

@@ -2,12 +2,11 @@
 //! by pydicom/nibabel, byte-identical for a seed, different across seeds, mirrored for a left
 //! ear, with landmarks on the true surfaces; bad arguments exit with code 2.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::Path;
 
+use crate::common;
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
 use otoatlas::image;

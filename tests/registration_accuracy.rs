@@ -3,11 +3,10 @@
 //! detail the atlas cannot reach), scored against their true surfaces; the side handling;
 //! resuming with `--from`; the clear refusals.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{otoatlas, otoatlas_json, root};
+use crate::common;
+use crate::common::{otoatlas, otoatlas_json, root};
 use serde_json::Value;
 
 const OSSICLES: [&str; 3] = ["malleus", "incus", "stapes"];

@@ -17,11 +17,10 @@
 //! half a voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not met yet, and
 //! each case prints its figures against them.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{otoatlas, otoatlas_json, shared_anatomy};
+use crate::common;
+use crate::common::{otoatlas, otoatlas_json, shared_anatomy};
 use serde_json::Value;
 
 /// The CT chain's landmarks in its OBJ frame (mm, LPS as a right ear).

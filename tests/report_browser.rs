@@ -7,12 +7,11 @@
 //! Skips, saying why, when `chromium` is not installed, unless `OTOATLAS_REQUIRE_BROWSER=1`
 //! (`common::chromium`).
 
-mod common;
-
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use crate::common;
 use otoatlas::report::slices::{REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR};
 
 /// Screenshot size: tall enough to hold the summary, metrics and the nine overlays.
