@@ -23,6 +23,7 @@ fn tf(atlas: &otoatlas::atlas::Atlas) -> TransferFunction {
 }
 
 #[test]
+#[ignore = "heavy: runs the three sample cases and their transfer functions, 70 s in debug; scripts/test.sh runs it"]
 fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
     let reference = tf(&default_atlas().unwrap());
     let (reference_peak, _) = reference.peak().unwrap();

@@ -6,7 +6,9 @@
 //! The integration tests are two binaries, ripgrep's layout (`autotests = false` in
 //! Cargo.toml): this one and `tests/model.rs` (the model and its numerics, in-process), each a
 //! list of modules, one file beside it per module. A new test file is a module added to one of
-//! the two lists.
+//! the two lists. Tests that take long are `#[ignore = "heavy: ..."]`: a plain
+//! `cargo test` leaves them out (and lists them as ignored), `bash scripts/test.sh` (CI) runs
+//! them with `--include-ignored`.
 
 mod common;
 
