@@ -5,6 +5,9 @@
 //! (median of 5) and of its parts; add `-- --trimesh` to time Python trimesh's
 //! `proximity.closest_point` on the same samples once (slow) and print the speed-up.
 
+#[path = "../tests/common/external.rs"]
+#[allow(dead_code)]
+mod external;
 #[path = "../tests/common/python.rs"]
 mod python;
 #[path = "../tests/common/trimesh_io.rs"]

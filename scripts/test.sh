@@ -17,6 +17,8 @@ python3 -m pip install --quiet --disable-pip-version-check -r scripts/requiremen
 bash scripts/fetch-testdata.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
-OTOATLAS_REQUIRE_SHARED=1 OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked
+# every test, the heavy ones (#[ignore = "heavy: ..."], which a plain `cargo test` leaves out) too;
+# an absent input (../shared, .testdata, python packages, chromium) is a failure, not a skip
+OTOATLAS_REQUIRE_SHARED=1 OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked -- --include-ignored
 # the Slurm job array on a one-node cluster started here (needs root for the daemons)
 as_root bash scripts/slurm-test.sh "$PWD/target/debug/otoatlas"

@@ -5,12 +5,11 @@
 //! round trip of the default atlas) and of the real SOFA chain (`../shared/anatomy`, skipped
 //! when absent), and `atlas build --surfaces` from the exported bone surfaces.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::python::run_python;
+use crate::common;
+use crate::common::python::run_python;
 use otoatlas::atlas::import::{ImportRequest, import_atlas};
 use otoatlas::atlas::model::sets;
 use otoatlas::atlas::{Atlas, Part, default_atlas, read_atlas, write_atlas};

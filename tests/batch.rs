@@ -50,6 +50,7 @@ fn cohort_json(out: &Path) -> Value {
 }
 
 #[test]
+#[ignore = "heavy: a batch of the sample cases, 18 s in debug; scripts/test.sh runs it"]
 fn a_failing_case_is_recorded_and_the_others_finish() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = sample_cohort(dir.path());
@@ -144,6 +145,7 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
 }
 
 #[test]
+#[ignore = "heavy: two shards of the sample cases, 28 s in debug; scripts/test.sh runs it"]
 fn shards_merge_into_the_whole_cohort() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
@@ -241,6 +243,7 @@ fn package_files(out: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 }
 
 #[test]
+#[ignore = "heavy: a clean batch, a killed one and its resumption, 53 s in debug; scripts/test.sh runs it"]
 fn a_killed_batch_resumes_to_the_same_packages() {
     let dir = tempfile::tempdir().unwrap();
     let clean = dir.path().join("clean");
@@ -327,6 +330,7 @@ fn ran_resumed_failed(o: &Output) -> (usize, usize, usize) {
 }
 
 #[test]
+#[ignore = "heavy: three batch runs of the sample cases, 74 s in debug; scripts/test.sh runs it"]
 fn resume_reruns_exactly_the_cases_that_changed() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = sample_cohort(dir.path());

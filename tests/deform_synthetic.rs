@@ -5,9 +5,7 @@
 //! with every element kept the right way out; on a block already on its edges it moves
 //! nothing beyond the image noise.
 
-mod common;
-
-use common::BoxMesh;
+use crate::common::BoxMesh;
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
 use otoatlas::fem::{FemModel, MembraneElements, TetElements, TetMaterial};

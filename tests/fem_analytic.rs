@@ -2,9 +2,7 @@
 //! deformation), rigid motion, uniaxial tension with Poisson contraction, and a cantilever
 //! against Euler–Bernoulli under mesh refinement.
 
-mod common;
-
-use common::{BoxMesh, Jitter};
+use crate::common::{BoxMesh, Jitter};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
     CorotationalState, Elements, FemModel, FixedDofs, StaticLoads, StaticOptions, StaticSolver,

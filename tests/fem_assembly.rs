@@ -4,9 +4,7 @@
 //! system satisfies A x = b when A is rebuilt densely from the stored lower triangle; the
 //! matrix-free step operator equals the assembled step matrix at a deformed state.
 
-mod common;
-
-use common::BoxMesh;
+use crate::common::BoxMesh;
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
     CorotationalState, Elements, FemModel, FixedDofs, MembraneMaterial, SparseCholesky,

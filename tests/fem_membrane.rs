@@ -3,9 +3,7 @@
 //! resultant = h·W·σ·n), rigid motion of a curved patch, uniaxial plane-stress tension,
 //! lumped membrane mass.
 
-mod common;
-
-use common::{Jitter, rectangle_membrane};
+use crate::common::{Jitter, rectangle_membrane};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
     CorotationalState, Elements, FemModel, FixedDofs, MembraneMaterial, StaticLoads, StaticOptions,

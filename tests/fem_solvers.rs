@@ -2,9 +2,7 @@
 //! linear answer), the inversion guard under a huge pull, implicit Euler free fall and one
 //! damped oscillator step, lumped tetrahedron mass, and the errors a caller can provoke.
 
-mod common;
-
-use common::BoxMesh;
+use crate::common::BoxMesh;
 use nalgebra::{Point3, Vector3};
 use otoatlas::fem::{
     CorotationalState, Elements, FemError, FemModel, FixedDofs, ImplicitEuler, Rayleigh, Spring,

@@ -3,9 +3,8 @@
 //! 3.0.2 and nibabel 5.4.2 and are recorded here; compressed files are compared voxel by
 //! voxel with their uncompressed twins.
 
-mod common;
-
-use common::{assert_close, otoatlas_json, testdata};
+use crate::common;
+use crate::common::{assert_close, otoatlas_json, testdata};
 use otoatlas::config::Config;
 use otoatlas::image::{self, ImageError, LoadedImage};
 
@@ -337,29 +336,25 @@ fn nifti_scl_slope_is_applied() {
 }
 
 /// Decompresses `input` with a dcmtk tool (Debian package dcmtk, an independent decoder) into
-/// `output`; `None` when dcmtk is absent and not required.
+/// `output`; `None` when dcmtk is absent (see `common::program`).
 fn dcmtk(
     tool: &str,
     args: &[&str],
     input: &std::path::Path,
     output: &std::path::Path,
 ) -> Option<()> {
-    let status = std::process::Command::new(tool)
+    let status = std::process::Command::new(common::program(tool, "dcmtk")?)
         .args(args)
         .arg(input)
         .arg(output)
-        .status();
-    match status {
-        Ok(s) if s.success() => Some(()),
-        Ok(s) => panic!("{tool} failed ({s}) on {}", input.display()),
-        Err(_) if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") => {
-            panic!("{tool} (dcmtk) is required: apt-get install dcmtk")
-        }
-        Err(_) => {
-            eprintln!("skipped: {tool} (dcmtk) not installed");
-            None
-        }
-    }
+        .status()
+        .unwrap_or_else(|e| panic!("run {tool}: {e}"));
+    assert!(
+        status.success(),
+        "{tool} failed ({status}) on {}",
+        input.display()
+    );
+    Some(())
 }
 
 #[test]

@@ -2,12 +2,11 @@
 //! exactly for shuffled, oblique, tilted and per-slice-rescaled series; and the bad-input
 //! matrix, each case a clear error with exit code 2 and never a panic.
 
-mod common;
-
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use common::{assert_close, otoatlas, otoatlas_json};
+use crate::common;
+use crate::common::{assert_close, otoatlas, otoatlas_json};
 use dicom_core::{DataElement, PrimitiveValue, VR};
 use dicom_dictionary_std::tags;
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -413,7 +412,7 @@ fn pydicom_and_nibabel_read_what_we_write() {
     });
     let exp = dir.path().join("expected.json");
     fs::write(&exp, expected.to_string()).unwrap();
-    common::python_check(
+    common::python::run_python(
         "check_volume.py",
         &[
             exp.to_str().unwrap(),

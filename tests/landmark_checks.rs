@@ -6,10 +6,9 @@
 //! code 2 naming it, and writes an unusual pick's warning into metrics.json and report.html;
 //! `landmarks` reports a suspected swap in its JSON.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
+use crate::common;
 use otoatlas::atlas::{Atlas, load_atlas};
 use otoatlas::config::Config;
 use otoatlas::ear::{Side, read_landmarks, write_json};

@@ -4,9 +4,7 @@
 //! law, and the follower-pressure static solve at low pressure against the small-strain
 //! (linear) solution.
 
-mod common;
-
-use common::meshes::BoxMesh;
+use crate::common::meshes::BoxMesh;
 use faer::c64;
 use nalgebra::{Point3, Vector3};
 use otoatlas::fem::{

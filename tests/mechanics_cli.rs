@@ -2,9 +2,7 @@
 //! (`validate` is exercised by the library tests, its full run is a benchmark; here only its
 //! refusal of a bad option.)
 
-mod common;
-
-use common::{otoatlas, otoatlas_json};
+use crate::common::{otoatlas, otoatlas_json};
 
 #[test]
 fn simulate_writes_the_umbo_trajectory() {

@@ -4,18 +4,13 @@
 //! directed means, maxima and P95 must agree with ours within 1 % (per-sample distances to
 //! 1e-6 mm).
 
-mod common {
-    pub mod python;
-    pub mod trimesh_io;
-}
-
 use nalgebra::Point3;
 use otoatlas::config::Config;
 use otoatlas::mesh::{TriMesh, shapes};
 use otoatlas::meshdev::structures::{default_label_table, load_structures};
 use otoatlas::meshdev::{CompareOptions, Directed, Sampling, compare, sample_surface};
 
-use common::trimesh_io::{TrimeshDirected, run_trimesh_check};
+use crate::common::trimesh_io::{TrimeshDirected, run_trimesh_check};
 
 /// A unit icosphere with a smooth radial bump, shifted off the origin.
 pub fn bumpy_sphere() -> TriMesh {

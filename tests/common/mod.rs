@@ -1,10 +1,14 @@
-//! Helpers shared by the integration tests: locating fetched test corpora, skipping cleanly
-//! when an optional input is absent, running the `otoatlas` binary and the Python checkers,
-//! and structured meshes (`meshes`).
+//! Helpers shared by the integration tests: the inputs from outside the repository and the one
+//! rule when one is absent (`external`), running the `otoatlas` binary and the Python checkers
+//! (`python`, `trimesh_io`), and structured meshes (`meshes`).
 #![allow(dead_code)]
 
+pub mod external;
 pub mod meshes;
 pub mod python;
+pub mod trimesh_io;
+#[allow(unused_imports)]
+pub use external::{chromium, program, shared_anatomy, testdata};
 #[allow(unused_imports)]
 pub use meshes::*;
 
@@ -14,42 +18,6 @@ use std::process::{Command, Output};
 /// The crate root.
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The folder `scripts/fetch-testdata.sh` fills (pydicom, pydicom-data and nibabel wheels).
-/// Returns `None` (and says so) when absent, unless `OTOATLAS_REQUIRE_TESTDATA=1`, which
-/// turns absence into a failure (CI sets it).
-pub fn testdata(rel: &str) -> Option<PathBuf> {
-    let p = root().join(".testdata").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("OTOATLAS_REQUIRE_TESTDATA").as_deref() == Ok("1") {
-        panic!("{} is missing: run scripts/fetch-testdata.sh", p.display());
-    }
-    eprintln!(
-        "skipped: {} absent (run scripts/fetch-testdata.sh)",
-        p.display()
-    );
-    None
-}
-
-/// The shared anatomy folder (`../shared/anatomy` next to the crate, or
-/// `$OTOATLAS_SHARED_DIR/anatomy`). Returns `None` (and says so) when absent, unless
-/// `OTOATLAS_REQUIRE_SHARED=1`, which turns absence into a failure (CI sets it).
-pub fn shared_anatomy() -> Option<PathBuf> {
-    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("../shared"));
-    let dir = shared.join("anatomy");
-    if dir.join("sofa-ossicles/Ossicles.vtu").is_file() {
-        return Some(dir);
-    }
-    if std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() == Ok("1") {
-        panic!("{} is missing and OTOATLAS_REQUIRE_SHARED=1", dir.display());
-    }
-    eprintln!("skipped: {} not present", dir.display());
-    None
 }
 
 /// The arguments of `otoatlas atlas import` for SOFA's chain (`anatomy` from
@@ -123,9 +91,4 @@ pub fn assert_close(actual: &[f64], expected: &[f64], tol: f64, what: &str) {
     for (a, e) in actual.iter().zip(expected) {
         assert!((a - e).abs() <= tol, "{what}: {actual:?} vs {expected:?}");
     }
-}
-
-/// Runs `python3 tests/python/SCRIPT ARGS` (see `python::run_python`); false when skipped.
-pub fn python_check(script: &str, args: &[&str], packages: &[&str]) -> bool {
-    python::run_python(script, args, packages).is_some()
 }

@@ -1,6 +1,7 @@
-//! Running the independent Python checkers of `tests/python/`: skip cleanly (say why, return
-//! `None`) when python3 or a needed package is missing, unless `OTOATLAS_REQUIRE_PYTHON=1`
-//! (CI), which makes that a failure. Only std, so the benchmarks can include it via `#[path]`.
+//! Running the independent Python checkers of `tests/python/`, when python3 imports the
+//! packages a checker needs (`external::python`: otherwise the test fails under
+//! `OTOATLAS_REQUIRE_PYTHON=1`, or is skipped, saying why). Only std, so the examples can
+//! include it via `#[path]`; users declare the sibling module `external` next to this one.
 
 use std::ffi::OsStr;
 use std::path::Path;
@@ -9,28 +10,7 @@ use std::process::Command;
 /// Runs `python3 tests/python/SCRIPT ARGS` when python3 imports every one of `packages`, and
 /// returns its stdout; a failing script fails the caller. `None` when skipped (see above).
 pub fn run_python<A: AsRef<OsStr>>(script: &str, args: &[A], packages: &[&str]) -> Option<String> {
-    let probe = Command::new("python3")
-        .args(["-c", &format!("import {}", packages.join(", "))])
-        .output();
-    let why = match probe {
-        Ok(o) if o.status.success() => None,
-        Ok(o) => Some(format!(
-            "python3 lacks {}: {}",
-            packages.join("/"),
-            String::from_utf8_lossy(&o.stderr).trim()
-        )),
-        Err(e) => Some(format!("python3 cannot be run ({e})")),
-    };
-    if let Some(why) = why {
-        if std::env::var("OTOATLAS_REQUIRE_PYTHON").as_deref() == Ok("1") {
-            panic!(
-                "OTOATLAS_REQUIRE_PYTHON=1 but {why} (pip install {})",
-                packages.join(" ")
-            );
-        }
-        eprintln!("skipped {script}: {why}");
-        return None;
-    }
+    super::external::python(packages)?;
     let out = Command::new("python3")
         .arg(
             Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -2,7 +2,7 @@
 //! samples as text, runs `tests/python/trimesh_check.py` (through `python::run_python`, so it
 //! skips, saying why, when python3 or trimesh is missing, unless `OTOATLAS_REQUIRE_PYTHON=1`,
 //! in which case that is a failure), and reads its JSON answer. Users declare the sibling
-//! module `python` next to this one.
+//! modules `python` and `external` next to this one.
 
 use std::fmt::Write as _;
 use std::path::Path;
