@@ -221,11 +221,11 @@ pub struct ChainPlacement {
     pub mirrored: bool,
     /// Atlas frame to the chain's frame (after mirroring).
     pub atlas_to_chain: SimilarityTransform,
-    /// RMS of the atlas landmarks against the chain's after the landmark fit [mm].
+    /// RMS of the atlas landmarks against the chain's after the landmark fit \[mm\].
     pub landmark_rms_mm: f64,
-    /// Mean distance of the atlas ossicle surfaces to the chain after ICP [mm].
+    /// Mean distance of the atlas ossicle surfaces to the chain after ICP \[mm\].
     pub icp_mean_mm: f64,
-    /// How far the oval window was moved from the atlas's footplate [mm].
+    /// How far the oval window was moved from the atlas's footplate \[mm\].
     pub footplate_shift_mm: f64,
 }
 

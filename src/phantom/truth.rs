@@ -17,7 +17,7 @@ use crate::ear::Landmarks;
 use crate::mesh::isosurface::{SampledField, isosurface};
 use crate::mesh::{LabelledDomain, TriMesh};
 
-/// Lattice step of the ossicle surfaces in the atlas frame [mm].
+/// Lattice step of the ossicle surfaces in the atlas frame \[mm\].
 pub const SURFACE_STEP_MM: f64 = 0.1;
 /// Rings (umbo to annulus) and sectors of the eardrum triangulation.
 const DRUM_RINGS: usize = 24;
@@ -163,7 +163,7 @@ impl From<&PatientWarp> for PoseRecord {
 pub struct DeformationRecord {
     #[serde(flatten)]
     pub field: Deformation,
-    /// `Σ |A_k|`: no displacement exceeds it [mm].
+    /// `Σ |A_k|`: no displacement exceeds it \[mm\].
     pub displacement_bound_mm: f64,
     /// `Σ |A_k| |κ_k|`: below 1, the map is invertible everywhere.
     pub gradient_bound: f64,

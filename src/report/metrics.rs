@@ -15,9 +15,9 @@ use crate::meshdev::SurfaceDistances;
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
 
-/// Target MASD per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target MASD per ossicle \[mm\] (mechanics-metrics.md §0.2).
 pub const MASD_TARGET_MM: f64 = 0.2;
-/// Target HD95 per ossicle [mm] (mechanics-metrics.md §0.2).
+/// Target HD95 per ossicle \[mm\] (mechanics-metrics.md §0.2).
 pub const HD95_TARGET_MM: f64 = 0.5;
 
 /// One structure's scores as `metrics.json` holds them under `scores.NAME`.
@@ -111,7 +111,7 @@ pub struct DeformSummary {
     pub status: String,
     pub message: Option<String>,
     /// Why a converged stage stopped ("plateau" or "balance") and its last mean border offset
-    /// [mm] (absent in records made before the stop reason was recorded).
+    /// \[mm\] (absent in records made before the stop reason was recorded).
     pub reason: Option<String>,
     pub mean_offset_mm: Option<f64>,
     pub history: Vec<Iteration>,
