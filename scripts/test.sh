@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite on a fresh machine (with Rust installed): installs what the tests need
-# (Debian and Python packages, public test corpora), checks formatting and lints, runs every test,
-# then the Slurm test (scripts/slurm-test.sh).
+# (Debian and Python packages, public test corpora), checks formatting, lints and rustdoc, runs
+# every test, then the Slurm test (scripts/slurm-test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib.sh
@@ -17,6 +17,7 @@ python3 -m pip install --quiet --disable-pip-version-check -r scripts/requiremen
 bash scripts/fetch-testdata.sh
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 # every test, the heavy ones (#[ignore = "heavy: ..."], which a plain `cargo test` leaves out) too;
 # an absent input (../shared, .testdata, python packages, chromium) is a failure, not a skip
 OTOATLAS_REQUIRE_SHARED=1 OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked -- --include-ignored

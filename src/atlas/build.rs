@@ -28,7 +28,7 @@ use crate::mesh::io::VolumeMesh;
 use crate::mesh::mesher::MesherError;
 use crate::mesh::tet::BoundaryOf;
 
-/// Target edge of the eardrum triangles in the default atlas [mm]: about 2,500 triangles
+/// Target edge of the eardrum triangles in the default atlas \[mm\]: about 2,500 triangles
 /// (the source study: 2,492).
 pub const DEFAULT_MEMBRANE_EDGE_MM: f64 = 0.24;
 

@@ -29,7 +29,7 @@ pub const MANIFEST: &str = "atlas.json";
 /// The mesh's file name in atlases this build writes.
 pub const MESH: &str = "mesh.vtu";
 
-/// Farthest a landmark may lie outside the tetrahedron it is tied to [mm].
+/// Farthest a landmark may lie outside the tetrahedron it is tied to \[mm\].
 pub const LANDMARK_TOLERANCE_MM: f64 = 0.5;
 
 /// The embedded default atlas (built by `otoatlas atlas build`, see docs/atlas-format.md).

@@ -42,10 +42,10 @@ pub struct RegionMap {
     pub name: String,
     pub part: Part,
     pub material: MaterialRef,
-    /// Membrane thickness [mm]: makes this a region of triangles.
+    /// Membrane thickness \[mm\]: makes this a region of triangles.
     #[serde(default)]
     pub thickness_mm: Option<f64>,
-    /// Flexural thickness [mm] of a membrane region that bends (a shell); absent: bending-free.
+    /// Flexural thickness \[mm\] of a membrane region that bends (a shell); absent: bending-free.
     #[serde(default)]
     pub bending_thickness_mm: Option<f64>,
     /// Splits a tag by position: every half-space must contain the cell's centroid. Regions
@@ -62,7 +62,7 @@ pub enum MaterialRef {
     Explicit(MaterialInfo),
 }
 
-/// The points `x` with `(x - point) · normal >= 0` [mm].
+/// The points `x` with `(x - point) · normal >= 0` \[mm\].
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HalfSpace {

@@ -4,25 +4,25 @@
 //! not give, each with its literature source.
 //!
 //! Sources (numbers as in the source table):
-//! - [K13] Kazmitcheff, Duriez, Miroir, Nguyen, Sterkers, Bozorg-Grayeli, Cotin 2013,
+//! - \[K13\] Kazmitcheff, Duriez, Miroir, Nguyen, Sterkers, Bozorg-Grayeli, Cotin 2013,
 //!   "Registration of a validated mechanical atlas of middle ear for surgical simulation",
 //!   MICCAI 2013, Table 1.
-//! - [Ko02] Koike, Wada, Kobayashi 2002, J Acoust Soc Am 111:1306–1317, as tabulated in
+//! - \[Ko02\] Koike, Wada, Kobayashi 2002, J Acoust Soc Am 111:1306–1317, as tabulated in
 //!   Gentil et al. 2016, BioMed Eng OnLine 15 (doi 10.1186/s12938-016-0149-2), Table 1:
 //!   tensor tympani tendon E = 2.6e6 Pa, ρ = 2.5e3 kg/m³.
-//! - [Su02] Sun, Gan, Chang, Dormer 2002, Biomech Model Mechanobiol 1:109–122: Poisson's
+//! - \[Su02\] Sun, Gan, Chang, Dormer 2002, Biomech Model Mechanobiol 1:109–122: Poisson's
 //!   ratio 0.3 for every middle-ear structure (same table of Gentil et al. 2016).
-//! - [Ki60] Kirikae 1960, "The structure and function of the middle ear": pars tensa
+//! - \[Ki60\] Kirikae 1960, "The structure and function of the middle ear": pars tensa
 //!   thickness 0.074 mm, the value used by Gan et al. 2004 (Ann Biomed Eng 32:847).
-//! - [Li70] Lim 1970, Acta Otolaryngol 70:176: pars flaccida thicker than the pars tensa
+//! - \[Li70\] Lim 1970, Acta Otolaryngol 70:176: pars flaccida thicker than the pars tensa
 //!   (about 30–230 µm); the 0.1 mm used here is mid-range and commonly used in models.
-//! - [W16] Wang, Gan et al. 2016, Biomech Model Mechanobiol 15:1263 (PMC4955651), Table 2:
+//! - \[W16\] Wang, Gan et al. 2016, Biomech Model Mechanobiol 15:1263 (PMC4955651), Table 2:
 //!   Rayleigh stiffness-damping coefficients β = 0.75e-4 to 1.5e-4 s, TM and stapes 1.0e-4 s;
 //!   incudostapedial joint E = 6 MPa, density 1000 kg/m³.
-//! - [Kw15] Kwacz, Rymuza, Michalowski, Wysocki 2015, JARO 16:433–446: the annular ligament
+//! - \[Kw15\] Kwacz, Rymuza, Michalowski, Wysocki 2015, JARO 16:433–446: the annular ligament
 //!   is linear up to ~100 nm deflection with a stiffness of about 120 N/m (AFM, temporal
 //!   bones).
-//! - [A01] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance
+//! - \[A01\] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance
 //!   ≈ 2e10 Pa·s/m³; with a footplate area of 3.2 mm² the dashpot is Z_c·A² ≈ 0.2 N·s/m.
 
 use super::region::{MembraneRegion, Region};
@@ -48,11 +48,11 @@ pub enum Structure {
 /// kg/m³ → g/mm³ (1 kg = 1e3 g, 1 m³ = 1e9 mm³).
 pub const KG_PER_M3_TO_G_PER_MM3: f64 = 1e-6;
 
-/// Poisson's ratio of every volumetric structure [Su02].
+/// Poisson's ratio of every volumetric structure \[Su02\].
 pub const POISSON: f64 = 0.3;
 
-/// Table 1 of [K13] as printed: (structure, density kg/m³, Young's modulus Pa). The tensor
-/// tympani modulus is missing from the printed table and is taken from [Ko02].
+/// Table 1 of \[K13\] as printed: (structure, density kg/m³, Young's modulus Pa). The tensor
+/// tympani modulus is missing from the printed table and is taken from \[Ko02\].
 pub const TABLE1: [(Structure, f64, f64); 17] = [
     (
         Structure::Membrane(MembraneRegion::ParsTensa),
@@ -113,7 +113,7 @@ pub const TABLE1: [(Structure, f64, f64); 17] = [
     (Structure::Volume(Region::StapediusTendon), 2.50e3, 5.20e5),
 ];
 
-/// The incudostapedial joint's density (kg/m³) and Young's modulus (Pa) [W16], used instead of
+/// The incudostapedial joint's density (kg/m³) and Young's modulus (Pa) \[W16\], used instead of
 /// Table 1's 6e5 Pa. Since the atlas's bones meet only through their joints, the joint is in
 /// the load path, and with 6e5 Pa the stapes rides on it (a mode near 315 Hz, a 250–500 Hz
 /// slope of 12.8 dB/octave, outside the Goode band). This value was chosen after seeing that,
@@ -139,9 +139,9 @@ pub fn material(structure: Structure) -> Material {
     }
 }
 
-/// Eardrum thickness (mm), from the literature: pars tensa 0.074 mm [Ki60], pars flaccida
-/// 0.1 mm [Li70] (the measured pars tensa range is ~0.04-0.12 mm, Kuypers et al. 2006, Hear
-/// Res 213:120 [M]). The eardrum is a thin shell of this thickness: in-plane stiffness E·h
+/// Eardrum thickness (mm), from the literature: pars tensa 0.074 mm \[Ki60\], pars flaccida
+/// 0.1 mm \[Li70\] (the measured pars tensa range is ~0.04-0.12 mm, Kuypers et al. 2006, Hear
+/// Res 213:120 \[M\]). The eardrum is a thin shell of this thickness: in-plane stiffness E·h
 /// and flexural rigidity E·h³/(12(1 − ν²)) (`bending_thickness_mm` of its atlas regions). The
 /// same value is what the phantoms render.
 pub fn membrane_thickness_mm(region: MembraneRegion) -> f64 {
@@ -161,14 +161,14 @@ pub struct Rayleigh {
 }
 
 /// Rayleigh coefficients from the literature: β = 1.0e-4 s, the eardrum's and stapes' value
-/// in [W16] (range 0.75e-4 to 1.5e-4 s); no mass-proportional term (α = 0): with the cochlear load, β is all
+/// in \[W16\] (range 0.75e-4 to 1.5e-4 s); no mass-proportional term (α = 0): with the cochlear load, β is all
 /// the damping the atlas needs to land in the transfer-function bands.
 pub const RAYLEIGH: Rayleigh = Rayleigh {
     alpha_per_s: 0.0,
     beta_s: 1.0e-4,
 };
 
-/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 [A01]; Merchant, Ravicz & Rosowski 1996, not checked here).
+/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 \[A01\]; Merchant, Ravicz & Rosowski 1996, not checked here).
 pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 1.0e10;
 
 /// Where the damping values come from (stored with them in the atlas file).
@@ -178,7 +178,7 @@ pub const DAMPING_SOURCE: &str = "literature, not calibrated (docs/mechanics.md)
      of about 1e10 to 2e10 in Aibara et al. 2001, Hear Res 152:100";
 
 /// Total stiffness of the stapedial annular ligament (N/m), shared by isotropic springs on
-/// the footplate rim nodes: 120 N/m, the AFM value of [Kw15] (measured at one point of the
+/// the footplate rim nodes: 120 N/m, the AFM value of \[Kw15\] (measured at one point of the
 /// footplate, linear up to ~100 nm; taken here as the whole ring's stiffness).
 pub const ANNULAR_LIGAMENT_STIFFNESS_N_PER_M: f64 = 120.0;
 

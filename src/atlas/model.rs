@@ -59,10 +59,10 @@ pub struct RegionInfo {
     pub part: Part,
     /// Key into the atlas's materials.
     pub material: String,
-    /// Membrane thickness [mm]; present exactly for regions made of triangles.
+    /// Membrane thickness \[mm\]; present exactly for regions made of triangles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thickness_mm: Option<f64>,
-    /// Flexural thickness h_b [mm] of a membrane region that is a shell: bending rigidity
+    /// Flexural thickness h_b \[mm\] of a membrane region that is a shell: bending rigidity
     /// E·h_b³/(12(1 − ν²)) on top of the in-plane stiffness. Absent: a bending-free membrane.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bending_thickness_mm: Option<f64>,
@@ -119,7 +119,7 @@ pub struct MeshPoint {
 
 impl MeshPoint {
     /// Ties `p` to the tetrahedron that contains it best (largest smallest barycentric
-    /// coordinate), with its distance outside that tetrahedron (0 inside) [mm].
+    /// coordinate), with its distance outside that tetrahedron (0 inside) \[mm\].
     pub fn locate(mesh: &TetMesh, p: &Point3<f64>) -> Option<(MeshPoint, f64)> {
         // (tet, barycentric, smallest coordinate) of the tet that contains p best
         let mut best: Option<(MeshPoint, f64)> = None;

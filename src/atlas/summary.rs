@@ -14,10 +14,10 @@ pub struct RegionSummary {
     pub part: Part,
     pub material: String,
     pub elements: usize,
-    /// Tetrahedra: volume [mm³]; membranes: area [mm²].
+    /// Tetrahedra: volume \[mm³\]; membranes: area \[mm²\].
     pub size: f64,
     pub unit: &'static str,
-    /// Tetrahedra only: dihedral angles [deg] and radius-edge ratios.
+    /// Tetrahedra only: dihedral angles \[deg\] and radius-edge ratios.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<QualitySummary>,
 }
@@ -42,7 +42,7 @@ pub struct AtlasSummary {
     pub materials: std::collections::BTreeMap<String, MaterialInfo>,
     pub node_sets: std::collections::BTreeMap<String, usize>,
     pub surfaces: std::collections::BTreeMap<String, usize>,
-    /// Landmark positions at the rest shape [mm].
+    /// Landmark positions at the rest shape \[mm\].
     pub landmarks: std::collections::BTreeMap<&'static str, [f64; 3]>,
     pub provenance: std::collections::BTreeMap<String, String>,
 }

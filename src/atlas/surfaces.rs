@@ -31,7 +31,7 @@ pub struct SurfaceBuild<'a> {
     /// The ear; default: the landmark file's.
     pub side: Option<Side>,
     pub name: &'a str,
-    /// Target tetrahedron edge [mm].
+    /// Target tetrahedron edge \[mm\].
     pub edge_mm: f64,
 }
 

@@ -5,14 +5,14 @@
 use crate::atlas::{Anatomy, Bone, Region};
 use crate::mesh::mesher::{MeshOutput, MesherError, MesherParams, mesh_domain};
 
-/// Target edge of the default atlas [mm]: about 7,600 tetrahedra for the chain and its
+/// Target edge of the default atlas \[mm\]: about 7,600 tetrahedra for the chain and its
 /// ligaments (the source study's atlas: 4,361). The coarsest lattice whose malleus is one
 /// face-connected piece: at 0.34-0.35 mm the manubrium's tip, which holds the umbo, hangs on
 /// the tensor tympani tendon only and the transfer function is 5-6 dB off the fine atlas;
 /// from 0.33 mm down it is within 1 dB (docs/mechanics.md, Convergence). It is also the
 /// mesher's default (one constant, `mesh::mesher::DEFAULT_TARGET_EDGE_MM`).
 pub const DEFAULT_EDGE_MM: f64 = crate::mesh::mesher::DEFAULT_TARGET_EDGE_MM;
-/// Target edge of the fine variant for convergence studies [mm]: about 200,000 tetrahedra.
+/// Target edge of the fine variant for convergence studies \[mm\]: about 200,000 tetrahedra.
 pub const FINE_EDGE_MM: f64 = 0.11;
 
 /// The regions that need the mesher's thin-structure rule.

@@ -110,13 +110,13 @@ pub struct BuildArgs {
     /// With --surfaces: the ear (default: the side the landmark file states).
     #[arg(long, value_enum, requires = "surfaces")]
     pub side: Option<Side>,
-    /// Target tetrahedron edge [mm].
+    /// Target tetrahedron edge (mm).
     #[arg(long, value_name = "MM", default_value_t = DEFAULT_EDGE_MM, conflicts_with = "fine")]
     pub edge: f64,
     /// The fine variant (edge 0.11 mm).
     #[arg(long)]
     pub fine: bool,
-    /// Target eardrum triangle edge [mm].
+    /// Target eardrum triangle edge (mm).
     #[arg(long, value_name = "MM", default_value_t = DEFAULT_MEMBRANE_EDGE_MM)]
     pub membrane_edge: f64,
     /// The atlas's name in its manifest.

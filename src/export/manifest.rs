@@ -65,7 +65,7 @@ pub struct AtlasRef {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Registration {
-    /// Landmark RMS after the rigid (similarity) fit [mm].
+    /// Landmark RMS after the rigid (similarity) fit \[mm\].
     pub landmark_rms_mm: f64,
     pub landmark_residuals_mm: Vec<f64>,
     /// The isotropic scale of `atlas_to_patient`.

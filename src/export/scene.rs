@@ -30,7 +30,7 @@ use crate::mechanics::MechanicalSystem;
 pub const SCENE: &str = "scene.scn";
 /// The mesh the scene loads (Gmsh MSH 2.2, beside the scene).
 pub const SCENE_MESH: &str = "mesh.msh";
-/// Time step [s]: 100 kHz, ten steps per period at the top of the 250–8000 Hz band.
+/// Time step \[s\]: 100 kHz, ten steps per period at the top of the 250–8000 Hz band.
 pub const DT_S: f64 = 1e-5;
 
 /// Numbers as Rust prints them for round-trip (shortest exact form), space separated.

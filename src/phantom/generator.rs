@@ -30,7 +30,7 @@ use crate::image::Volume;
 use crate::mesh::TriMesh;
 use crate::meshdev::structures::DEFAULT_LABELS;
 
-/// Voxel spacings a phantom may have [mm] (NewTom 5G-class CBCT).
+/// Voxel spacings a phantom may have \[mm\] (NewTom 5G-class CBCT).
 pub const SPACING_RANGE_MM: (f64, f64) = (0.125, 0.3);
 /// Default landmark pick noise (RMS, mm) and its cut-off.
 pub const PICK_NOISE_MM: f64 = 0.15;
@@ -43,15 +43,15 @@ const SUPERSAMPLE: usize = 3;
 /// What the user chooses; the rest is drawn from the seed.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PhantomOptions {
-    /// Voxel spacing [mm]; drawn in `SPACING_RANGE_MM` when absent.
+    /// Voxel spacing \[mm\]; drawn in `SPACING_RANGE_MM` when absent.
     pub spacing_mm: Option<f64>,
-    /// Image noise SD [HU]; the imaging default when absent.
+    /// Image noise SD \[HU\]; the imaging default when absent.
     pub noise_sd_hu: Option<f64>,
     /// Add cone-beam artefacts (cupping, rings, streaks).
     pub artefacts: bool,
     /// The ear's side; drawn when absent.
     pub side: Option<Side>,
-    /// Full width at half maximum of the point-spread function [mm]; the imaging default
+    /// Full width at half maximum of the point-spread function \[mm\]; the imaging default
     /// (0.25 mm) when absent.
     pub blur_mm: Option<f64>,
 }

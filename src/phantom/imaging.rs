@@ -60,16 +60,16 @@ pub struct Grid {
 pub struct ImagingParams {
     /// Sub-samples per voxel and axis for partial volume (n³ samples per voxel).
     pub supersample: usize,
-    /// Full width at half maximum of the Gaussian point-spread function [mm].
+    /// Full width at half maximum of the Gaussian point-spread function \[mm\].
     pub psf_fwhm_mm: f64,
-    /// Standard deviation of the additive Gaussian noise [HU].
+    /// Standard deviation of the additive Gaussian noise \[HU\].
     pub noise_sd_hu: f64,
-    /// Cupping: depression at the centre of the field of view relative to its edge [HU].
+    /// Cupping: depression at the centre of the field of view relative to its edge \[HU\].
     pub cupping_hu: f64,
-    /// Ring artefacts: number of rings and their amplitude [HU].
+    /// Ring artefacts: number of rings and their amplitude \[HU\].
     pub rings: usize,
     pub ring_amplitude_hu: f64,
-    /// Streak artefacts: number of streaks and their amplitude [HU].
+    /// Streak artefacts: number of streaks and their amplitude \[HU\].
     pub streaks: usize,
     pub streak_amplitude_hu: f64,
     /// Seed of every random number of the image.

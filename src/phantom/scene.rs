@@ -33,7 +33,7 @@ use crate::atlas::{Anatomy, MembraneRegion};
 /// bony rim (about 0.1 mm: Kwacz et al. 2015) [mm].
 const ANNULAR_GAP_MM: f64 = 0.1;
 
-/// The grey levels of each tissue [HU].
+/// The grey levels of each tissue \[HU\].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TissueLevels {
@@ -62,16 +62,16 @@ impl Default for TissueLevels {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CavityParams {
-    /// Nearest and farthest distance of the cavity wall from the ossicles [mm].
+    /// Nearest and farthest distance of the cavity wall from the ossicles \[mm\].
     pub wall_min_mm: f64,
     pub wall_max_mm: f64,
     /// Phase of the smooth wall variation (a seed-derived number, radians).
     pub wall_phase: f64,
-    /// Depth of the cavity medial to the whole eardrum (umbo to promontory is about 2 mm) [mm].
+    /// Depth of the cavity medial to the whole eardrum (umbo to promontory is about 2 mm) \[mm\].
     pub depth_behind_drum_mm: f64,
-    /// Radius of the otic capsule block around the footplate [mm].
+    /// Radius of the otic capsule block around the footplate \[mm\].
     pub capsule_radius_mm: f64,
-    /// Depth of the vestibule behind the footplate (its opening is the oval window) [mm].
+    /// Depth of the vestibule behind the footplate (its opening is the oval window) \[mm\].
     pub vestibule_radius_mm: f64,
 }
 

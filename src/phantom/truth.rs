@@ -17,7 +17,7 @@ use crate::mesh::isosurface::{SampledField, isosurface};
 use crate::mesh::{LabelledDomain, TriMesh};
 use crate::register::rigid::SimilarityTransform;
 
-/// Lattice step of the ossicle surfaces in the atlas frame [mm].
+/// Lattice step of the ossicle surfaces in the atlas frame \[mm\].
 pub const SURFACE_STEP_MM: f64 = 0.1;
 /// Rings (umbo to annulus) and sectors of the eardrum triangulation.
 const DRUM_RINGS: usize = 24;
@@ -163,7 +163,7 @@ impl From<&PatientWarp> for PoseRecord {
 pub struct DeformationRecord {
     #[serde(flatten)]
     pub field: Deformation,
-    /// `Σ |A_k|`: no displacement exceeds it [mm].
+    /// `Σ |A_k|`: no displacement exceeds it \[mm\].
     pub displacement_bound_mm: f64,
     /// `Σ |A_k| |κ_k|`: below 1, the map is invertible everywhere.
     pub gradient_bound: f64,
@@ -220,11 +220,11 @@ pub struct ChainPlacement {
     pub mirrored: bool,
     /// Atlas frame to the chain's frame (after mirroring).
     pub atlas_to_chain: SimilarityTransform,
-    /// RMS of the atlas landmarks against the chain's after the landmark fit [mm].
+    /// RMS of the atlas landmarks against the chain's after the landmark fit \[mm\].
     pub landmark_rms_mm: f64,
-    /// Mean distance of the atlas ossicle surfaces to the chain after ICP [mm].
+    /// Mean distance of the atlas ossicle surfaces to the chain after ICP \[mm\].
     pub icp_mean_mm: f64,
-    /// How far the oval window was moved from the atlas's footplate [mm].
+    /// How far the oval window was moved from the atlas's footplate \[mm\].
     pub footplate_shift_mm: f64,
 }
 

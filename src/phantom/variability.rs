@@ -199,7 +199,7 @@ pub struct ShapeDetail {
 }
 
 impl ShapeDetail {
-    /// How far the surface of `ossicle` moves outward near `p` [mm].
+    /// How far the surface of `ossicle` moves outward near `p` \[mm\].
     #[inline]
     pub fn offset(&self, ossicle: Ossicle, p: &Point3<f64>) -> f64 {
         self.bumps

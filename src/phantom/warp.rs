@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WaveMode {
-    /// Displacement amplitude vector [mm].
+    /// Displacement amplitude vector \[mm\].
     pub amplitude_mm: [f64; 3],
     /// Wave vector κ [rad/mm].
     pub wave_vector: [f64; 3],
@@ -47,7 +47,7 @@ impl Deformation {
         })
     }
 
-    /// Upper bound of `|d|` [mm].
+    /// Upper bound of `|d|` \[mm\].
     pub fn displacement_bound(&self) -> f64 {
         self.modes
             .iter()

@@ -42,7 +42,7 @@ pub struct CaseStatus {
     /// The error of a failed case.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
-    /// Wall time of the run [s] (0 for a case skipped by `--resume`).
+    /// Wall time of the run \[s\] (0 for a case skipped by `--resume`).
     pub seconds: f64,
 }
 

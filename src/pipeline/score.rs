@@ -48,7 +48,7 @@ pub struct StructureScore {
     /// surface for a fused reference).
     #[serde(skip)]
     pub surface: TriMesh,
-    /// Signed distance of each registered-surface vertex to the reference [mm].
+    /// Signed distance of each registered-surface vertex to the reference \[mm\].
     #[serde(skip)]
     pub deviation: Vec<f64>,
     #[serde(skip)]

@@ -44,19 +44,19 @@ const PRIOR_ARM_MM: f64 = 2.0;
 pub struct ArticulateConfig {
     /// Fit each ossicle's pose before the FEM [true/false].
     pub enabled: bool,
-    /// Probe-and-fit rounds [count].
+    /// Probe-and-fit rounds \[count\].
     pub iterations: usize,
     /// Weight of a joint tie per mm of separation against the surface residuals, as a
     /// fraction of the ossicles' total probed area [1/mm²].
     pub joint_weight: f64,
-    /// Levenberg damping of each step, as a fraction of the ossicle's probed area [unitless].
+    /// Levenberg damping of each step, as a fraction of the ossicle's probed area \[unitless\].
     pub damping: f64,
     /// Weight of the whole motion of each ossicle from its landmark placement (a rotation
     /// counted at a 2 mm lever arm), as a fraction of the ossicle's probed area [1/mm²].
     pub prior: f64,
-    /// Stop when no surface point moved more than this in a round [mm].
+    /// Stop when no surface point moved more than this in a round \[mm\].
     pub tolerance_mm: f64,
-    /// How far each triangle looks for its bone edge on either side [mm]: longer than the
+    /// How far each triangle looks for its bone edge on either side \[mm\]: longer than the
     /// deformable stage's, since a whole bone's pose averages out the wrong finds.
     pub search_range_mm: f64,
 }
@@ -73,14 +73,14 @@ pub struct OssiclePose {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Articulation {
     pub rounds: usize,
-    /// Mean |offset| of the kept border points in the first and in the last round [mm].
+    /// Mean |offset| of the kept border points in the first and in the last round \[mm\].
     pub mean_offset_first_mm: f64,
     pub mean_offset_last_mm: f64,
     pub poses: Vec<OssiclePose>,
-    /// Largest separation of a joint's two ends at the end [mm].
+    /// Largest separation of a joint's two ends at the end \[mm\].
     pub joint_gap_mm: f64,
     /// Largest distance of a bone node from its target once the FEM carried the atlas there
-    /// (where the bones touch, the atlas cannot follow the motions exactly) [mm].
+    /// (where the bones touch, the atlas cannot follow the motions exactly) \[mm\].
     pub target_gap_mm: f64,
 }
 

@@ -93,12 +93,12 @@ pub struct DeformRecord {
     #[serde(default)]
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
-    /// The probe step (the smallest voxel spacing) [mm].
+    /// The probe step (the smallest voxel spacing) \[mm\].
     pub probe_step_mm: f64,
 }
 
 impl Registered {
-    /// The record of this registration, probed with step `step` [mm].
+    /// The record of this registration, probed with step `step` \[mm\].
     pub fn record(&self, step: f64) -> DeformRecord {
         DeformRecord {
             articulation: self.articulation.clone(),

@@ -27,7 +27,7 @@ pub struct EardrumFit {
     pub free_nodes: usize,
     /// Of those, nodes whose probe found the sheet in the last round (after screening).
     pub found_last_round: usize,
-    /// Mean |offset| to the sheet in the last round [mm].
+    /// Mean |offset| to the sheet in the last round \[mm\].
     pub mean_offset_mm: f64,
 }
 

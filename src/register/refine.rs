@@ -17,11 +17,11 @@
 //!   edges, nodes without a find (the faces on the joints, ligaments and tendons) and the
 //!   interior follow harmonically;
 //! - where a round's move would invert or flatten an element (its shape quality below
-//!   [`MIN_QUALITY`]; an element already below may lose at most a tenth of it), the element's
+//!   `MIN_QUALITY`; an element already below may lose at most a tenth of it), the element's
 //!   nodes give up their own offsets and their edges stiffen, and the round is solved again,
-//!   up to [`MAX_STIFFENINGS`] times; after that the level stops at its last admissible shape.
+//!   up to `MAX_STIFFENINGS` times; after that the level stops at its last admissible shape.
 //!
-//! The level stops when the mean border offset no longer falls (by [`PLATEAU`]) or after
+//! The level stops when the mean border offset no longer falls (by `PLATEAU`) or after
 //! `rounds` rounds.
 
 use faer::linalg::solvers::Solve;
@@ -59,12 +59,12 @@ const DEFINITE: f64 = 1e-9;
 pub struct RefineConfig {
     /// Run the surface level after the FEM levels [true/false].
     pub enabled: bool,
-    /// Probe-and-move rounds at most [count].
+    /// Probe-and-move rounds at most \[count\].
     pub rounds: usize,
     /// Weight of the displacement's smoothness over each tetrahedron edge against a node's
-    /// probed offset (a node of mean probed area weighs 1) [unitless].
+    /// probed offset (a node of mean probed area weighs 1) \[unitless\].
     pub smoothness: f64,
-    /// How far each triangle looks for its bone edge on either side [mm]: the FEM levels
+    /// How far each triangle looks for its bone edge on either side \[mm\]: the FEM levels
     /// leave the surface within a few tenths of a millimetre of its edges.
     pub search_range_mm: f64,
 }
@@ -74,13 +74,13 @@ pub struct RefineConfig {
 pub struct Refinement {
     /// Rounds whose move was kept.
     pub rounds: usize,
-    /// Mean |offset| of the kept border points before the first round and in the last [mm]
+    /// Mean |offset| of the kept border points before the first round and in the last \[mm\]
     /// (absent when nothing was found).
     pub mean_offset_first_mm: Option<f64>,
     pub mean_offset_last_mm: Option<f64>,
     /// Fraction of the probed triangles with a kept border point in the last round.
     pub found_fraction: f64,
-    /// Largest nodal move of the whole level [mm].
+    /// Largest nodal move of the whole level \[mm\].
     pub max_move_mm: f64,
     /// Nodes stiffened in the last kept round to keep its elements from flattening.
     pub stiffened_nodes: usize,

@@ -17,9 +17,9 @@ use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
 use crate::register::rigid::{RigidFit, SimilarityTransform};
 
-/// Target MASD per ossicle [mm], about one CBCT voxel (docs/metrics.md).
+/// Target MASD per ossicle \[mm\], about one CBCT voxel (docs/metrics.md).
 pub const MASD_TARGET_MM: f64 = 0.2;
-/// Target HD95 per ossicle [mm] (docs/metrics.md).
+/// Target HD95 per ossicle \[mm\] (docs/metrics.md).
 pub const HD95_TARGET_MM: f64 = 0.5;
 
 /// A case's `metrics.json`.
@@ -161,7 +161,7 @@ pub struct DeformSummary {
     pub status: String,
     pub message: Option<String>,
     /// Why a converged stage stopped ("plateau" or "balance") and its last mean border offset
-    /// [mm] (absent in records made before the stop reason was recorded).
+    /// \[mm\] (absent in records made before the stop reason was recorded).
     pub reason: Option<String>,
     pub mean_offset_mm: Option<f64>,
     pub history: Vec<IterationStats>,

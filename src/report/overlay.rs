@@ -83,11 +83,11 @@ pub struct SliceSpec {
     pub view: View,
     /// A point the plane passes through; it is the image centre.
     pub centre: Point3<f64>,
-    /// Half the side of the square field of view [mm].
+    /// Half the side of the square field of view \[mm\].
     pub half_width_mm: f64,
-    /// Pixel size [mm].
+    /// Pixel size \[mm\].
     pub pixel_mm: f64,
-    /// Grey window [HU]: values at or below `lo` are black, at or above `hi` white.
+    /// Grey window \[HU\]: values at or below `lo` are black, at or above `hi` white.
     pub window: (f32, f32),
 }
 

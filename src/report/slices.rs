@@ -22,7 +22,7 @@ pub const RIGID_COLOUR: [u8; 3] = [255, 160, 0];
 pub const REGISTERED_COLOUR: [u8; 3] = [255, 0, 255];
 /// Contour colour of the manual segmentation.
 pub const SEGMENTATION_COLOUR: [u8; 3] = [0, 230, 80];
-/// Side of every overlay image [pixels].
+/// Side of every overlay image \[pixels\].
 pub const OVERLAY_PIXELS: usize = 256;
 /// Space around the ossicle's bounding box [mm].
 const MARGIN_MM: f64 = 1.0;

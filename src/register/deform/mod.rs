@@ -16,7 +16,7 @@
 //!   of sensible stiffness could move anything. Springs have stiffness per unit surface area.
 //! - The static solver never accepts an inverted element: if no admissible step exists the
 //!   stage keeps the last valid state and goes on with the springs around the element that
-//!   would invert (within [`SOFTEN_RADIUS_MM`]) half as stiff, so the FEM smooths more there
+//!   would invert (within `SOFTEN_RADIUS_MM`) half as stiff, so the FEM smooths more there
 //!   while the rest of the chain keeps converging; after four halvings at one place it stops
 //!   there and says so.
 
@@ -50,29 +50,29 @@ pub struct DeformConfig {
     #[serde(flatten)]
     pub probe: ProbeConfig,
     /// Young's modulus given to bone during registration; other regions keep their ratio to
-    /// bone [Pa].
+    /// bone \[Pa\].
     pub regularisation_modulus_pa: f64,
-    /// No region is softer than this fraction of bone during registration [fraction].
+    /// No region is softer than this fraction of bone during registration \[fraction\].
     pub min_modulus_ratio: f64,
     /// Fit the eardrum to the soft-tissue ridge in the image (off: it only follows the
     /// manubrium).
     pub probe_eardrum: bool,
     /// Weight of each found eardrum offset against the smoothness of the offsets over each
-    /// membrane edge (lower: smoother) [unitless].
+    /// membrane edge (lower: smoother) \[unitless\].
     pub eardrum_offset_weight: f64,
     /// Spring stiffness per unit of surface area of a node [µN/mm per mm²].
     pub spring_stiffness_per_area: f64,
-    /// A triangle's offset may differ from the median of its neighbours' by this much [mm].
+    /// A triangle's offset may differ from the median of its neighbours' by this much \[mm\].
     pub neighbour_tolerance_mm: f64,
     /// Converged when 99 % of the nodes moved less than this in an iteration, or when the
     /// mean border offset stopped falling by 2 % for 3 iterations (image noise makes the
-    /// border points jitter by a fraction of a voxel between iterations) [mm].
+    /// border points jitter by a fraction of a voxel between iterations) \[mm\].
     pub tolerance_mm: f64,
-    /// Iteration limit of the outer loop [count].
+    /// Iteration limit of the outer loop \[count\].
     pub max_iterations: usize,
     /// Times the FEM's rest shape is reset to the registered shape once it settles, each
     /// followed by another round to equilibrium (0: one round from the articulated atlas)
-    /// [count].
+    /// \[count\].
     pub rest_updates: usize,
 }
 
@@ -91,11 +91,11 @@ pub struct IterationStats {
     pub borders_found: usize,
     /// Of those, kept after screening.
     pub borders_used: usize,
-    /// Mean |offset| of the kept border points [mm].
+    /// Mean |offset| of the kept border points \[mm\].
     pub mean_offset_mm: f64,
-    /// Largest nodal update of the FEM solve [mm].
+    /// Largest nodal update of the FEM solve \[mm\].
     pub max_update_mm: f64,
-    /// 99th percentile of the nodal updates [mm]: the convergence measure.
+    /// 99th percentile of the nodal updates \[mm\]: the convergence measure.
     pub p99_update_mm: f64,
     /// Smallest factor on a node's spring stiffness (halved around an element each time a
     /// step would invert it).
@@ -131,7 +131,7 @@ impl StopReason {
 pub enum DeformStatus {
     Converged {
         reason: StopReason,
-        /// Mean border offset of the last iteration [mm].
+        /// Mean border offset of the last iteration \[mm\].
         mean_offset_mm: f64,
     },
     MaxIterations,

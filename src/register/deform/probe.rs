@@ -17,15 +17,15 @@ use crate::image::Sampler;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProbeConfig {
-    /// How far to look on each side of the surface [mm].
+    /// How far to look on each side of the surface \[mm\].
     pub search_range_mm: f64,
-    /// Positive shift added to HU before taking ratios, so air stays well above zero [HU].
+    /// Positive shift added to HU before taking ratios, so air stays well above zero \[HU\].
     pub intensity_shift_hu: f64,
-    /// Ratio threshold t: a boundary is where I(j)/I(j-1) leaves [1 - t, 1 + t] [fraction].
+    /// Ratio threshold t: a boundary is where I(j)/I(j-1) leaves [1 - t, 1 + t] \[fraction\].
     pub ratio_threshold: f64,
-    /// The bone side of an edge must reach at least this [HU].
+    /// The bone side of an edge must reach at least this \[HU\].
     pub bone_min_hu: f64,
-    /// A membrane ridge must rise this much above the lower of its two sides [HU].
+    /// A membrane ridge must rise this much above the lower of its two sides \[HU\].
     pub sheet_contrast_hu: f64,
 }
 

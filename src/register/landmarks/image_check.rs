@@ -20,7 +20,7 @@ pub struct ImageCheck<'a> {
     /// The atlas, already on the patient's side.
     pub atlas: &'a Atlas,
     pub sampler: &'a Sampler<'a>,
-    /// Probe step [mm] (the smallest voxel spacing, as in the deformable stage).
+    /// Probe step \[mm\] (the smallest voxel spacing, as in the deformable stage).
     pub step_mm: f64,
     /// The bone-edge probe (`[deform]` in pipeline.toml).
     pub probe: &'a ProbeConfig,
@@ -33,9 +33,9 @@ pub struct ImageCheck<'a> {
 pub struct BorderFit {
     /// Ossicle surface triangles probed.
     pub triangles: usize,
-    /// Fraction of them that found a bone edge within the search range [fraction].
+    /// Fraction of them that found a bone edge within the search range \[fraction\].
     pub found_fraction: f64,
-    /// Mean |offset| from a triangle to the edge it found [mm].
+    /// Mean |offset| from a triangle to the edge it found \[mm\].
     pub mean_abs_offset_mm: f64,
 }
 

@@ -48,7 +48,7 @@ pub enum Accuracy<'a> {
         /// The score stage's record.
         scores: &'a Scores,
         /// Per scored structure: the registered surface that was scored and the signed
-        /// distance of each of its vertices [mm].
+        /// distance of each of its vertices \[mm\].
         deviation: BTreeMap<&'a str, (&'a TriMesh, &'a [f64])>,
         /// The segmentation's surfaces by structure name.
         reference: &'a BTreeMap<String, TriMesh>,

@@ -42,16 +42,16 @@ struct Args {
     #[arg(long)]
     json: bool,
     /// Write the per-vertex signed deviation of the test surface as PLY (quality + RGB);
-    /// with several structures, one file per structure: OUT.<name>.ply.
+    /// with several structures, one file per structure: OUT.NAME.ply.
     #[arg(long, value_name = "OUT.ply")]
     map: Option<PathBuf>,
     /// Area-weighted samples per surface (default: 10 per triangle, 1e4..1e6).
     #[arg(long, value_name = "N")]
     samples: Option<usize>,
-    /// Surface Dice tolerance [mm] (one voxel is customary).
+    /// Surface Dice tolerance in mm (one voxel is customary).
     #[arg(long, default_value_t = 0.2, value_name = "MM")]
     tolerance: f64,
-    /// Colour range of the deviation map [mm], symmetric: -R..+R.
+    /// Colour range of the deviation map (mm), symmetric: -R..+R.
     #[arg(long, default_value_t = 0.5, value_name = "MM")]
     colour_range: f64,
     /// Label table of label maps, e.g. "1=malleus,2=incus,3=stapes,4=eardrum".

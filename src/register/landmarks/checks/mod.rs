@@ -38,9 +38,9 @@ use crate::image::Sampler;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CheckConfig {
-    /// Smallest height of the landmark triangle [mm]; below it the rigid fit is undetermined.
+    /// Smallest height of the landmark triangle \[mm\]; below it the rigid fit is undetermined.
     pub min_triangle_height_mm: f64,
-    /// Below this smallest height [mm] the triangle is flat for a middle ear: the rigid fit's
+    /// Below this smallest height \[mm\] the triangle is flat for a middle ear: the rigid fit's
     /// rotation about its longest side is known only to about pick error / height (a warning).
     pub typical_min_height_mm: f64,
     /// Allowed patient/atlas ratio of the landmark triangle's perimeter [unitless, min and
@@ -64,7 +64,7 @@ pub struct CheckConfig {
     pub swap_border_gain: f64,
 }
 
-/// One distance's bands [mm].
+/// One distance's bands \[mm\].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Band {
     pub typical_mm: [f64; 2],
@@ -176,7 +176,7 @@ pub enum LandmarkWarning {
         /// The distances suggest it: exchanged, every distance is in its typical band, as
         /// given not.
         by_distances: bool,
-        /// umbo-IMJ, umbo-ISJ, IMJ-ISJ as given and with `a` and `b` exchanged [mm].
+        /// umbo-IMJ, umbo-ISJ, IMJ-ISJ as given and with `a` and `b` exchanged \[mm\].
         given_mm: [f64; 3],
         swapped_mm: [f64; 3],
         atlas_mm: Option<[f64; 3]>,
