@@ -86,6 +86,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     fs::rename(&tmp, path).map_err(io_err(path))
 }
 
+/// Writes `value` to `path` as pretty JSON with a final newline, atomically: the form of every
+/// JSON record and output the project writes.
+pub fn write_json_file<T: serde::Serialize + ?Sized>(
+    path: &Path,
+    value: &T,
+) -> Result<(), FileError> {
+    let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
+    write_atomic(path, text.as_bytes())
+}
+
 /// Writes the folder `dir` as a whole: `write` fills a temporary sibling, which then replaces
 /// `dir` (exchanged with an older `dir` in one step where the system can). On any error the
 /// temporary is removed and an older `dir` is left as it was, so `dir` is complete or absent.

@@ -21,7 +21,7 @@ use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manif
 use crate::config::Config;
 use crate::ear::write_mrk_json;
 use crate::image::dicom::patient::PatientIdentity;
-use crate::io_util::{io_err, write_atomic, write_dir_atomic};
+use crate::io_util::{io_err, write_atomic, write_dir_atomic, write_json_file};
 use crate::mesh::io::gmsh::write_msh;
 use crate::register::atlas_fit::DeformRecord;
 use crate::register::rigid::RigidFit;
@@ -68,8 +68,7 @@ pub fn write_package_logged(out: &Path, input: &PackageInput) -> Result<Manifest
         "written_unix_s": written,
         "patient_fields_kept": input.patient.is_some(),
     });
-    let text = serde_json::to_string_pretty(&log).unwrap_or_default() + "\n";
-    write_atomic(&out.join("package.log.json"), text.as_bytes())?;
+    write_json_file(&out.join("package.log.json"), &log)?;
     Ok(manifest)
 }
 

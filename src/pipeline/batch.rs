@@ -18,7 +18,7 @@ use crate::Error;
 use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
 use crate::export::{atlas_sha256, verify_package};
-use crate::io_util::write_atomic;
+use crate::io_util::write_json_file;
 use crate::progress::Reporter;
 
 /// What `batch` is asked to do besides the cases and the configuration.
@@ -170,11 +170,7 @@ fn run_one(
 }
 
 fn write_status(out: &Path, status: &CaseStatus) -> Result<(), Error> {
-    let text = serde_json::to_string_pretty(status).unwrap_or_default() + "\n";
-    Ok(write_atomic(
-        &status_path(out, &status.id),
-        text.as_bytes(),
-    )?)
+    Ok(write_json_file(&status_path(out, &status.id), status)?)
 }
 
 /// Reads the status of case `id`, if it has one.

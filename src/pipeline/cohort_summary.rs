@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 use super::batch::{Outcome, case_dir, read_status};
 use super::cohort::Skipped;
 use crate::Error;
-use crate::io_util::write_atomic;
+use crate::io_util::{write_atomic, write_json_file};
 use crate::report::metrics::CaseMetrics;
 use crate::report::{CohortEntry, cohort_report};
 
@@ -20,10 +20,8 @@ const CASE_LIST: &str = "cohort-cases.json";
 
 /// Records the cohort's case ids in `out` (the same file from every shard).
 pub fn write_case_list(out: &Path, ids: &[String], skipped: &[Skipped]) -> Result<(), Error> {
-    let text = serde_json::to_string_pretty(&json!({ "cases": ids, "skipped": skipped }))
-        .unwrap_or_default()
-        + "\n";
-    Ok(write_atomic(&out.join(CASE_LIST), text.as_bytes())?)
+    let list = json!({ "cases": ids, "skipped": skipped });
+    Ok(write_json_file(&out.join(CASE_LIST), &list)?)
 }
 
 fn read_case_list(out: &Path) -> Result<(Vec<String>, Vec<Skipped>), Error> {
@@ -129,7 +127,6 @@ pub fn merge_cohort(out: &Path) -> Result<Value, Error> {
     })?;
     write_atomic(&report_path, report.html.as_bytes())?;
     write_atomic(&out.join("cohort.csv"), report.csv.as_bytes())?;
-    let text = serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n";
-    write_atomic(&out.join("cohort.json"), text.as_bytes())?;
+    write_json_file(&out.join("cohort.json"), &summary)?;
     Ok(summary)
 }

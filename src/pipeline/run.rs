@@ -28,7 +28,7 @@ use crate::export::MechanicsSummary;
 use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, ImageRecord, LoadedImage, Sampler};
-use crate::io_util::write_atomic;
+use crate::io_util::{write_atomic, write_json_file};
 use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
@@ -117,12 +117,6 @@ fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
     out.join("stages").join(stage.artefact())
 }
 
-/// Writes `value` as pretty JSON, atomically.
-fn write_record<T: Serialize>(path: &Path, value: &T) -> Result<(), Error> {
-    let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
-    Ok(write_atomic(path, text.as_bytes())?)
-}
-
 /// The artefact an earlier run's `stage` wrote, read back by the type that wrote it.
 fn read_record<T: DeserializeOwned>(out: &Path, stage: Stage, from: Stage) -> Result<T, Error> {
     let path = artefact_path(out, stage);
@@ -166,7 +160,7 @@ fn run_or_resume<T: Serialize + DeserializeOwned>(
     }
     let started = Instant::now();
     let value = run()?;
-    write_record(&artefact_path(out, stage), &value)?;
+    write_json_file(&artefact_path(out, stage), &value)?;
     clock.record(stage.name(), started);
     Ok(value)
 }
@@ -334,7 +328,7 @@ pub fn run_case(
             failed: v.verdict.failures().map(|g| g.name.clone()).collect(),
         }),
     };
-    write_record(&out.join("metrics.json"), &metrics)?;
+    write_json_file(&out.join("metrics.json"), &metrics)?;
     let report = CaseReportInput {
         case_id: &case.id,
         image: &ingested.loaded,
@@ -413,7 +407,7 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
     let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
     let record = ImageRecord::of(&loaded, &case.image);
     if opts.from <= Stage::Ingest {
-        write_record(&artefact_path(&opts.out, Stage::Ingest), &record)?;
+        write_json_file(&artefact_path(&opts.out, Stage::Ingest), &record)?;
     } else {
         let before: ImageRecord = read_record(&opts.out, Stage::Ingest, opts.from)?;
         if before != record {
@@ -680,7 +674,7 @@ fn export(
     let record = ExportRecord {
         files: files.iter().map(|f| f.display().to_string()).collect(),
     };
-    write_record(&artefact_path(out, Stage::Export), &record)?;
+    write_json_file(&artefact_path(out, Stage::Export), &record)?;
     clock.record(Stage::Export.name(), t);
     Ok(())
 }
@@ -701,7 +695,7 @@ fn validate(
     progress.case_stage(&case.id, "validate");
     let t = Instant::now();
     let v = validate_registered(atlas, nodes, &config.validate)?;
-    write_record(&out.join("mechanics.json"), &v)?;
+    write_json_file(&out.join("mechanics.json"), &v)?;
     progress.log(&format!(
         "{}: mechanics against the atlas: {} ({} of {} gates failed)",
         case.id,
@@ -748,5 +742,5 @@ fn write_timings(
             serde_json::to_value(levels).unwrap_or_default(),
         );
     }
-    write_record(&out.join("timings.json"), &timings)
+    Ok(write_json_file(&out.join("timings.json"), &timings)?)
 }

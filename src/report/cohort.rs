@@ -38,7 +38,7 @@ pub struct CohortReport {
 
 /// How a case ended.
 enum Outcome<'a> {
-    Scored(BTreeMap<String, StructureMetrics>),
+    Scored(&'a BTreeMap<String, StructureMetrics>),
     /// Registered, but without a segmentation to score against.
     Unscored,
     Failed(&'a str),
@@ -54,15 +54,15 @@ impl Outcome<'_> {
     }
 }
 
-fn outcome(entry: &CohortEntry) -> Result<Outcome<'_>, ReportError> {
-    Ok(match (&entry.error, &entry.metrics) {
+fn outcome(entry: &CohortEntry) -> Outcome<'_> {
+    match (&entry.error, &entry.metrics) {
         (Some(error), _) => Outcome::Failed(error),
         (None, None) => Outcome::Failed("no metrics.json"),
         (None, Some(metrics)) => match &metrics.scores {
             None => Outcome::Unscored,
-            Some(scores) => Outcome::Scored(scores.clone()),
+            Some(scores) => Outcome::Scored(scores),
         },
-    })
+    }
 }
 
 /// The worst ossicle of a scored case: (name, its registered distances), highest MASD.
@@ -75,7 +75,7 @@ fn worst_ossicle(scores: &BTreeMap<String, StructureMetrics>) -> Option<(&str, &
 
 /// The report of `entries`, in their order.
 pub fn cohort_report(entries: &[CohortEntry]) -> Result<CohortReport, ReportError> {
-    let outcomes: Vec<Outcome> = entries.iter().map(outcome).collect::<Result<_, _>>()?;
+    let outcomes: Vec<Outcome> = entries.iter().map(outcome).collect();
     Ok(CohortReport {
         html: html(entries, &outcomes)?,
         csv: csv(entries, &outcomes),
@@ -206,7 +206,7 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> Result<String, ReportE
         .iter()
         .zip(outcomes)
         .filter_map(|(e, o)| match o {
-            Outcome::Scored(s) => Some((e, s)),
+            Outcome::Scored(s) => Some((e, *s)),
             _ => None,
         })
         .collect();

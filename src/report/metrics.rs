@@ -177,11 +177,7 @@ impl DeformSummary {
             DeformStatus::Converged {
                 reason,
                 mean_offset_mm,
-            } => (
-                None,
-                Some(reason.as_str().to_string()),
-                Some(*mean_offset_mm),
-            ),
+            } => (None, Some(reason.name().to_string()), Some(*mean_offset_mm)),
             DeformStatus::MaxIterations => (None, None, None),
             DeformStatus::InversionGuard { message } => (Some(message.clone()), None, None),
         };

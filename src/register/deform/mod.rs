@@ -117,7 +117,7 @@ pub enum StopReason {
 
 impl StopReason {
     /// The name `metrics.json` records.
-    pub fn as_str(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             StopReason::Plateau => "plateau",
             StopReason::Balance => "balance",
