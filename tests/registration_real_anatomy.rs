@@ -29,11 +29,13 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
  "incudomalleolar": [-1.031, -0.461, 1.529],
  "incudostapedial": [1.148, 0.358, -2.358]}"#;
 
-/// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm], and
-/// the least improvement of the chain MASD over the landmark fit.
-const MASD_MAX_VOXELS: f64 = 1.0;
-const MASD_MAX_MM: f64 = 0.25;
-const HD95_MAX_MM: f64 = 1.7;
+/// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm] (per
+/// chain: SOFA's incus label carries tendon and ligament stubs up to 2.8 mm from any incus,
+/// docs/registration.md), and the least improvement of the chain MASD over the landmark fit.
+const MASD_MAX_VOXELS: f64 = 0.7;
+const MASD_MAX_MM: f64 = 0.15;
+const HD95_MAX_MM_SOFA: f64 = 1.5;
+const HD95_MAX_MM_CT: f64 = 0.9;
 const MIN_IMPROVEMENT: f64 = 0.45;
 
 fn run_ok(args: &[&str]) {
@@ -132,11 +134,11 @@ fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
     // validation of the mechanics is not what this test is about
     let config = common::config_without_validation(tmp.path());
     let chains = [
-        ("sofa", sofa_chain(&anatomy, tmp.path())),
-        ("ct455", ct_chain(&anatomy, tmp.path())),
+        ("sofa", sofa_chain(&anatomy, tmp.path()), HD95_MAX_MM_SOFA),
+        ("ct455", ct_chain(&anatomy, tmp.path()), HD95_MAX_MM_CT),
     ];
     let mut failures = Vec::new();
-    for (name, chain) in &chains {
+    for (name, chain, hd95_max) in &chains {
         for (k, (spacing, side)) in [
             ("0.15", "left"),
             ("0.2", "right"),
@@ -167,7 +169,7 @@ fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
             if masd > MASD_MAX_MM || masd > MASD_MAX_VOXELS * voxel {
                 failures.push(format!("{name} seed {seed}: chain MASD {masd:.3} mm"));
             }
-            if hd95 > HD95_MAX_MM {
+            if hd95 > *hd95_max {
                 failures.push(format!("{name} seed {seed}: chain HD95 {hd95:.3} mm"));
             }
             if improvement < MIN_IMPROVEMENT {

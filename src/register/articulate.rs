@@ -25,6 +25,7 @@ use super::deform::{
     DeformConfig, ProbeConfig, ProbeTriangle, probe_surface, screen, triangle_neighbours,
 };
 use super::probes::probe_triangles_by_part;
+use super::stapes_turn::{self, StapesTurn};
 use crate::atlas::{Atlas, Part};
 use crate::ear::LandmarkName;
 use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
@@ -35,6 +36,8 @@ use crate::image::Sampler;
 const TARGET_STIFFNESS_MM: f64 = 100.0;
 /// Cauchy scale of the offsets [mm]: an offset of this size weighs half.
 const CAUCHY_MM: f64 = 0.3;
+/// Index of the stapes in `Part::BONES`.
+const STAPES: usize = 2;
 /// Lever arm at which the prior weighs a rotation like a translation [mm] (half an ossicle).
 const PRIOR_ARM_MM: f64 = 2.0;
 
@@ -59,6 +62,9 @@ pub struct ArticulateConfig {
     /// How far each triangle looks for its bone edge on either side \[mm\]: longer than the
     /// deformable stage's, since a whole bone's pose averages out the wrong finds.
     pub search_range_mm: f64,
+    /// Largest tilt of the stapes about its head searched before the fit (`stapes_turn`)
+    /// \[deg\]; 0 starts from the landmark placement's direction.
+    pub stapes_turn_max_deg: f64,
 }
 
 /// One ossicle's motion from the landmark placement.
@@ -82,6 +88,8 @@ pub struct Articulation {
     /// Largest distance of a bone node from its target once the FEM carried the atlas there
     /// (where the bones touch, the atlas cannot follow the motions exactly) \[mm\].
     pub target_gap_mm: f64,
+    /// The stapes's turn about its head searched before the fit (absent when not searched).
+    pub stapes_turn: Option<StapesTurn>,
 }
 
 /// A rigid motion about a pivot: x ↦ R (x − pivot) + pivot + t.
@@ -155,6 +163,25 @@ pub fn articulate(
             pivot: *p,
         })
         .collect();
+    // the stapes's direction is the atlas's (only its head is a landmark): search it widely
+    let stapes_turn = (cfg.stapes_turn_max_deg > 0.0).then(|| {
+        let stapes: Vec<ProbeTriangle> = probes
+            .iter()
+            .filter(|(k, _)| *k == STAPES)
+            .map(|(_, t)| *t)
+            .collect();
+        let head = landmarks.get(LandmarkName::Incudostapedial);
+        let (turn, record) =
+            stapes_turn::search(&stapes, placed, &head, sampler, cfg.stapes_turn_max_deg);
+        // a turn about the head: x ↦ R (x − c) + c + (R − I)(c − head), c the pivot
+        let m = &mut motions[STAPES];
+        let lever = m.pivot - head;
+        m.rotation = turn;
+        m.translation = turn * lever - lever;
+        record
+    });
+    // the prior holds each bone near where the search left it
+    let start = motions.clone();
     let probe_cfg = ProbeConfig {
         search_range_mm: cfg.search_range_mm,
         ..deform.probe.clone()
@@ -239,16 +266,17 @@ pub fn articulate(
         }
         // Levenberg damping of the step, and a prior on the whole motion (rotations weighed
         // at the lever arm PRIOR_ARM_MM) that holds the directions the borders leave free
-        for (k, m) in motions.iter().enumerate() {
+        for (k, (m, s)) in motions.iter().zip(&start).enumerate() {
             let (mu, prior) = (cfg.damping * bone_area[k], cfg.prior * bone_area[k]);
-            let theta = m.rotation.scaled_axis();
+            let theta = (m.rotation * s.rotation.inverse()).scaled_axis();
+            let shift = m.translation - s.translation;
             let arm2 = PRIOR_ARM_MM * PRIOR_ARM_MM;
             for a in 0..3 {
                 let (r, t) = (6 * k + a, 6 * k + 3 + a);
                 h[(r, r)] += mu + prior * arm2;
                 g[r] -= prior * arm2 * theta[a];
                 h[(t, t)] += mu + prior;
-                g[t] -= prior * m.translation[a];
+                g[t] -= prior * shift[a];
             }
         }
         let Some(delta) = h.cholesky().map(|c| c.solve(&g)) else {
@@ -292,6 +320,7 @@ pub fn articulate(
         poses,
         joint_gap_mm,
         target_gap_mm: 0.0,
+        stapes_turn,
     };
     (targets, record)
 }

@@ -9,6 +9,7 @@ pub mod landmarks;
 pub mod probes;
 pub mod refine;
 pub mod rigid;
+pub mod stapes_turn;
 
 pub use crate::ear::Side;
 pub use landmarks::{LandmarkName, Landmarks};
