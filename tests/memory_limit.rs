@@ -9,7 +9,7 @@ use std::process::Command;
 const LIMIT_KIB: u64 = 2 * 1024 * 1024;
 
 #[test]
-#[ignore = "heavy: a whole run with the mechanics under a limit, 45 s in release; scripts/test.sh runs it"]
+#[ignore = "heavy: a whole run with the mechanics under a limit, about 100 s in debug; scripts/test.sh runs it"]
 fn run_finishes_under_a_2_gib_address_space_limit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
