@@ -35,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if std::env::args().any(|a| a == "--octaves") {
         options.frequencies_hz = vec![250.0, 500.0, 1000.0, 2000.0, 4000.0, 8000.0];
     }
-    let tf = transfer_function(&system, &options)?;
+    let tf = transfer_function(&system, &options, &otoatlas::progress::Silent)?;
     let t_tf = t1.elapsed().as_secs_f64();
     for p in &tf.points {
         println!(
@@ -52,7 +52,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     let t2 = Instant::now();
-    let curve = static_pressure_curve(&system, &UdspOptions::default())?;
+    let curve = static_pressure_curve(
+        &system,
+        &UdspOptions::default(),
+        &otoatlas::progress::Silent,
+    )?;
     let t_s = t2.elapsed().as_secs_f64();
     for p in &curve.points {
         println!(

@@ -18,7 +18,7 @@ fn magnitudes(atlas: &Atlas) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
         frequencies_hz: OCTAVES_HZ.to_vec(),
         ..TfaOptions::default()
     };
-    let tf = transfer_function(&system, &options)?;
+    let tf = transfer_function(&system, &options, &otoatlas::progress::Silent)?;
     Ok(tf.points.iter().map(|p| p.magnitude_um_s_per_pa).collect())
 }
 

@@ -17,7 +17,8 @@ use otoatlas::mechanics::{
 fn the_atlas_transfer_function_passes_the_literature_gates() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
-    let tf = transfer_function(&system, &TfaOptions::default()).unwrap();
+    let tf =
+        transfer_function(&system, &TfaOptions::default(), &otoatlas::progress::Silent).unwrap();
     let verdict = literature_verdict(&tf, &StaticCurve::default());
     for g in &verdict.gates {
         println!(
@@ -52,8 +53,8 @@ fn a_rigidly_moved_atlas_has_identical_mechanics() {
     let mut results = Vec::new();
     for nodes in [atlas.nodes(), &moved[..]] {
         let system = MechanicalSystem::new(&atlas, nodes).unwrap();
-        let tf = transfer_function(&system, &options).unwrap();
-        let curve = static_pressure_curve(&system, &udsp).unwrap();
+        let tf = transfer_function(&system, &options, &otoatlas::progress::Silent).unwrap();
+        let curve = static_pressure_curve(&system, &udsp, &otoatlas::progress::Silent).unwrap();
         results.push((tf, curve.at(500.0).unwrap()));
     }
     let ((tf0, u0), (tf1, u1)) = (&results[0], &results[1]);
@@ -79,6 +80,7 @@ fn static_umbo(system: &MechanicalSystem, p: f64, tolerance_mm: f64) -> f64 {
             tolerance_mm,
             ..UdspOptions::default()
         },
+        &otoatlas::progress::Silent,
     )
     .unwrap();
     curve.at(p).unwrap()

@@ -1,6 +1,6 @@
 //! `otoatlas simulate` end to end: the trajectory file, the JSON report, bad options.
-//! (`validate` is exercised by the library tests, its full run is a benchmark; here only its
-//! refusal of a bad option.)
+//! `validate` (its numbers are exercised by the library tests): the progress it logs when
+//! stderr is not a terminal, and its refusal of a bad option.
 
 use crate::common::{otoatlas, otoatlas_json};
 
@@ -47,4 +47,44 @@ fn validate_rejects_a_bad_eardrum_bending_thickness() {
     // exit 1 is kept for a failed gate
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("bending thickness"), "{stderr}");
+}
+
+#[test]
+#[ignore = "heavy: the atlas's whole validation, 45 s in debug; scripts/test.sh runs it"]
+fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
+    // stderr is a pipe here, as in CI or a batch log: plain log lines instead of bars
+    let out = otoatlas(&["validate"]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    // as many frequencies and pressures as the report lists ("... deg" rows; "... um" rows but
+    // the 0 Pa one)
+    let frequencies = stdout
+        .lines()
+        .filter(|l| l.trim_end().ends_with(" deg"))
+        .count();
+    let pressures = stdout
+        .lines()
+        .filter(|l| l.trim_end().ends_with(" um") && !l.trim_start().starts_with("0 Pa"))
+        .count();
+    assert!(frequencies > 10 && pressures > 2, "{stdout}");
+    let tfa_done = format!("TFA: {frequencies} frequencies solved");
+    let udsp_done = format!("UDSP: {pressures} static pressures solved");
+    let lines: Vec<&str> = stderr.lines().collect();
+    let at = |line: &str| lines.iter().position(|l| *l == line);
+    let (Some(tfa), Some(udsp)) = (at(&tfa_done), at(&udsp_done)) else {
+        panic!("no {tfa_done:?} or {udsp_done:?} in stderr:\n{stderr}");
+    };
+    assert!(tfa < udsp, "{stderr}");
+    // the way there, in tenths, before each summary
+    let tenths = |label: &str, end: usize| {
+        lines[..end]
+            .iter()
+            .filter(|l| l.starts_with(&format!("{label}: ")) && l.contains("% ("))
+            .count()
+    };
+    assert!(tenths("TFA", tfa) >= 5, "{stderr}");
+    assert!(tenths("UDSP", udsp) >= 2, "{stderr}");
 }

@@ -20,7 +20,7 @@ fn tf(atlas: &otoatlas::atlas::Atlas) -> TransferFunction {
         frequencies_hz: otoatlas::mechanics::tfa::third_octaves(250.0, 2000.0),
         ..TfaOptions::default()
     };
-    transfer_function(&system, &options).unwrap()
+    transfer_function(&system, &options, &otoatlas::progress::Silent).unwrap()
 }
 
 #[test]

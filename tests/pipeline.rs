@@ -20,6 +20,7 @@ mod landmark_checks;
 mod landmark_files;
 mod mechanics_cli;
 mod mechanics_packages;
+mod memory_limit;
 mod package;
 mod phantom_cases;
 mod registration_accuracy;

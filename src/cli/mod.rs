@@ -90,7 +90,7 @@ pub fn main() -> ExitCode {
         Command::Batch(a) => batch::run(a, cli.config.as_deref(), &terminal),
         Command::CohortReport(a) => batch::cohort_report(a),
         Command::Phantom(a) => phantom::run(a, &terminal),
-        Command::Validate(a) => validate::run(a),
+        Command::Validate(a) => validate::run(a, &terminal),
         Command::Simulate(a) => simulate::run(a),
         Command::Verify(a) => verify::run(a),
     };

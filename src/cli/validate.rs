@@ -12,6 +12,7 @@ use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::load_atlas;
 use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_package};
+use crate::progress::Reporter;
 use crate::report::mechanics_plots::validation_plots;
 
 /// Validate the mechanics of an atlas or a patient package: umbo displacement under static
@@ -54,7 +55,7 @@ pub struct ValidateArgs {
     pub json: bool,
 }
 
-pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
+pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error> {
     let mut options = ValidationOptions::default();
     options.tfa.drive = args.drive;
     options.eardrum_bending_mm = args.eardrum_bending;
@@ -78,7 +79,7 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
         ),
     };
     let validation = match reference {
-        None => validate_atlas(&atlas, &options)?,
+        None => validate_atlas(&atlas, &options, progress)?,
         Some(reference) => {
             let same = reference.mesh.tets.tets == atlas.mesh.tets.tets
                 && reference.mesh.triangles == atlas.mesh.triangles;
@@ -89,7 +90,7 @@ pub fn run(args: &ValidateArgs) -> Result<Report, Error> {
                         .into(),
                 ));
             }
-            validate_package(&reference, atlas.nodes(), &options)?
+            validate_package(&reference, atlas.nodes(), &options, progress)?
         }
     };
     if let Some(dir) = &args.plots {

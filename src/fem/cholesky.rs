@@ -1,7 +1,7 @@
 //! Sparse Cholesky LLᵀ of a symmetric positive-definite matrix given by its lower triangle
 //! (faer 0.24 low-level API): the fill-reducing ordering and symbolic factorisation are
 //! computed once per pattern; every numeric factorisation and solve reuses them and a scratch
-//! buffer sized once, so neither allocates.
+//! buffer sized once, so neither allocates. `fem::variant` picks supernodal or simplicial.
 //!
 //! Ordering: AMD on the node graph (one vertex per 3×3 block), expanded to the three DOFs of
 //! each node, so a node's DOFs stay adjacent in the factor and the ordering works on a graph
@@ -19,6 +19,7 @@ use faer::{Conj, MatMut, Par, Side};
 
 use super::assembly::SparsePattern;
 use super::error::FemError;
+use super::variant;
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
     FemError::Factorisation {
@@ -87,7 +88,7 @@ impl SparseCholesky {
             pattern.symbolic(),
             Side::Lower,
             SymmetricOrdering::Custom(perm),
-            Default::default(),
+            variant::cholesky_params(),
         )
         .map_err(|e| faer_error("symbolic analysis", e))?;
         let par = faer::get_global_parallelism();

@@ -6,8 +6,9 @@
 //! with K the rest stiffness (elements plus node springs), M the lumped masses, C a diagonal
 //! of nodal dashpots (g/s) and Rayleigh α, β as SOFA applies them (to the whole stiffness,
 //! springs included). The matrix is complex symmetric, not Hermitian, so it is factorised by
-//! faer's sparse LU (partial pivoting; COLAMD ordering and symbolic analysis done once per
-//! model and reused at every frequency). Fixed DOFs are removed from the system (û = 0 there).
+//! faer's sparse LU (partial pivoting, the variant `fem::variant` picks; COLAMD ordering and
+//! symbolic analysis done once per model and reused at every frequency). Fixed DOFs are
+//! removed from the system (û = 0 there).
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
@@ -21,6 +22,7 @@ use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::state::CorotationalState;
+use super::variant;
 
 /// Complex amplitude of one node's displacement (mm), x, y, z.
 pub type ComplexDisplacement = [c64; 3];
@@ -131,7 +133,7 @@ impl HarmonicSolver {
         let masses = model.lumped_masses();
         let mass = free.iter().map(|&d| masses[d / 3]).collect();
         let dashpot = free.iter().map(|&d| node_dashpot[d / 3]).collect();
-        let symbolic = factorize_symbolic_lu(s, Default::default())
+        let symbolic = factorize_symbolic_lu(s, variant::lu_params())
             .map_err(|e| faer_error("harmonic symbolic LU", e))?;
         Ok(HarmonicSolver {
             node_count: n,

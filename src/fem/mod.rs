@@ -29,6 +29,7 @@ mod rotation;
 mod state;
 mod statics;
 mod tet;
+mod variant;
 
 pub use assembly::SparsePattern;
 pub use cholesky::SparseCholesky;

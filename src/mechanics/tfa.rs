@@ -18,6 +18,7 @@ use serde::Serialize;
 use super::boundary::MechanicalSystem;
 use super::error::MechanicsError;
 use crate::fem::{HarmonicSolver, PressureLoad};
+use crate::progress::Reporter;
 
 /// The source study's sound pressure: 90 dB SPL re 20 µPa, in Pa rms.
 pub const DRIVE_PA: f64 = 0.632;
@@ -147,10 +148,12 @@ fn drive_forces(system: &MechanicalSystem, drive: Drive, p: f64) -> Vec<Vector3<
     f
 }
 
-/// The stapes velocity transfer function of `system` (frequencies solved in parallel).
+/// The stapes velocity transfer function of `system` (frequencies solved in parallel), each
+/// frequency solved reported to `progress`.
 pub fn transfer_function(
     system: &MechanicalSystem,
     options: &TfaOptions,
+    progress: &dyn Reporter,
 ) -> Result<TransferFunction, MechanicsError> {
     if !(options.drive_pa.is_finite() && options.drive_pa > 0.0) {
         return Err(MechanicsError::InvalidOption {
@@ -180,6 +183,7 @@ pub fn transfer_function(
     .map_err(MechanicsError::solve("harmonic system"))?;
     let force = drive_forces(system, options.drive, options.drive_pa);
     let n = system.footplate_normal;
+    let task = progress.task("TFA", options.frequencies_hz.len() as u64);
     let responses: Vec<(c64, c64)> = options
         .frequencies_hz
         .par_iter()
@@ -209,9 +213,14 @@ pub fn transfer_function(
                 .sum::<c64>();
             // velocity = iω û (mm/s) → µm/s per Pa of drive
             let to_velocity = c64::new(0.0, omega * 1e3 / options.drive_pa);
+            task.inc(1);
             Ok((piston * to_velocity, umbo * to_velocity))
         })
         .collect::<Result<_, MechanicsError>>()?;
+    task.finish(&format!(
+        "{} frequencies solved",
+        options.frequencies_hz.len()
+    ));
     let mut points = Vec::with_capacity(responses.len());
     let mut previous: Option<f64> = None;
     for (&f, (h, umbo)) in options.frequencies_hz.iter().zip(&responses) {

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use super::boundary::MechanicalSystem;
 use super::error::MechanicsError;
 use crate::fem::{PressureLoad, StaticLoads, StaticOptions, StaticSolver};
+use crate::progress::{Reporter, Task};
 
 /// The pressures of the gate (Pa): ±1, ±2, ±4 kPa.
 pub const GATE_PRESSURES_PA: [f64; 6] = [-4000.0, -2000.0, -1000.0, 1000.0, 2000.0, 4000.0];
@@ -100,10 +101,12 @@ impl StaticCurve {
     }
 }
 
-/// The static pressure curve of `system`; the two branches are solved in parallel.
+/// The static pressure curve of `system`; the two branches are solved in parallel, each
+/// pressure reached reported to `progress`.
 pub fn static_pressure_curve(
     system: &MechanicalSystem,
     options: &UdspOptions,
+    progress: &dyn Reporter,
 ) -> Result<StaticCurve, MechanicsError> {
     for (what, v) in [
         ("largest pressure step (Pa)", options.max_step_pa),
@@ -126,7 +129,7 @@ pub fn static_pressure_curve(
             expected: "finite",
         });
     }
-    let branch = |sign: f64| {
+    let branches: [Vec<f64>; 2] = [-1.0, 1.0].map(|sign| {
         let mut ps: Vec<f64> = options
             .pressures_pa
             .iter()
@@ -135,9 +138,13 @@ pub fn static_pressure_curve(
             .collect();
         ps.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
         ps.dedup();
-        solve_branch(system, &ps, options)
-    };
-    let (neg, pos) = join(|| branch(-1.0), || branch(1.0));
+        ps
+    });
+    let task = progress.task("UDSP", branches.iter().map(|b| b.len() as u64).sum());
+    let (neg, pos) = join(
+        || solve_branch(system, &branches[0], options, task.as_ref()),
+        || solve_branch(system, &branches[1], options, task.as_ref()),
+    );
     let (mut points, neg_failure) = neg?;
     let (pos_points, pos_failure) = pos?;
     points.push(UdspPoint {
@@ -147,6 +154,7 @@ pub fn static_pressure_curve(
     });
     points.extend(pos_points);
     points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
+    task.finish(&format!("{} static pressures solved", points.len() - 1));
     let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
     Ok(StaticCurve {
         points,
@@ -154,12 +162,13 @@ pub fn static_pressure_curve(
     })
 }
 
-/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached,
-/// and why the branch stopped short if it did.
+/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached
+/// (each one reported to `task`), and why the branch stopped short if it did.
 fn solve_branch(
     system: &MechanicalSystem,
     pressures: &[f64],
     options: &UdspOptions,
+    task: &dyn Task,
 ) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
@@ -212,6 +221,7 @@ fn solve_branch(
             umbo_mm: (system.umbo.position(&x) - u0).dot(&system.medial),
             iterations,
         });
+        task.inc(1);
     }
     Ok((out, None))
 }

@@ -11,6 +11,7 @@ use super::tfa::{TfaOptions, TransferFunction, transfer_function};
 use super::udsp::{StaticCurve, UdspOptions, static_pressure_curve};
 use super::verdict::{Verdict, literature_verdict, relative_verdict};
 use crate::atlas::Atlas;
+use crate::progress::Reporter;
 
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
@@ -46,22 +47,23 @@ pub struct Mechanics {
     pub udsp_seconds: f64,
 }
 
-/// Runs TFA and UDSP on `atlas` with its rest shape at `nodes`.
+/// Runs TFA and UDSP on `atlas` with its rest shape at `nodes`, reporting to `progress`.
 pub fn mechanics(
     atlas: &Atlas,
     nodes: &[Point3<f64>],
     options: &ValidationOptions,
+    progress: &dyn Reporter,
 ) -> Result<Mechanics, MechanicsError> {
     let mut system = MechanicalSystem::new(atlas, nodes)?;
     if let Some(h) = options.eardrum_bending_mm {
         system = system.with_eardrum_bending(h)?;
     }
     let t = std::time::Instant::now();
-    let transfer_function = transfer_function(&system, &options.tfa)?;
+    let transfer_function = transfer_function(&system, &options.tfa, progress)?;
     let tfa_seconds = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
     let udsp = match &options.udsp {
-        Some(udsp) => static_pressure_curve(&system, udsp)?,
+        Some(udsp) => static_pressure_curve(&system, udsp, progress)?,
         None => StaticCurve::default(),
     };
     Ok(Mechanics {
@@ -85,8 +87,9 @@ pub struct Validation {
 pub fn validate_atlas(
     atlas: &Atlas,
     options: &ValidationOptions,
+    progress: &dyn Reporter,
 ) -> Result<Validation, MechanicsError> {
-    let m = mechanics(atlas, atlas.nodes(), options)?;
+    let m = mechanics(atlas, atlas.nodes(), options, progress)?;
     let verdict = literature_verdict(&m.transfer_function, &m.udsp);
     Ok(Validation {
         mechanics: m,
@@ -100,9 +103,11 @@ pub fn validate_package(
     atlas: &Atlas,
     registered: &[Point3<f64>],
     options: &ValidationOptions,
+    progress: &dyn Reporter,
 ) -> Result<Validation, MechanicsError> {
-    let reference = mechanics(atlas, atlas.nodes(), options)?;
-    validate_package_against(&reference, atlas, registered, options)
+    progress.log("mechanics of the atlas (the reference)");
+    let reference = mechanics(atlas, atlas.nodes(), options, progress)?;
+    validate_package_against(&reference, atlas, registered, options, progress)
 }
 
 /// As [`validate_package`], with the atlas's own mechanics (`reference`, computed with the
@@ -112,8 +117,10 @@ pub fn validate_package_against(
     atlas: &Atlas,
     registered: &[Point3<f64>],
     options: &ValidationOptions,
+    progress: &dyn Reporter,
 ) -> Result<Validation, MechanicsError> {
-    let m = mechanics(atlas, registered, options)?;
+    progress.log("mechanics of the package");
+    let m = mechanics(atlas, registered, options, progress)?;
     let verdict = relative_verdict(
         &m.transfer_function,
         &m.udsp,

@@ -16,6 +16,7 @@ use crate::Error;
 use crate::atlas::Atlas;
 use crate::config::ValidateConfig;
 use crate::export::atlas_sha256;
+use crate::progress::{Reporter, Silent};
 use serde::{Deserialize, Serialize};
 
 use crate::atlas::{Side, load_atlas};
@@ -63,6 +64,7 @@ pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
             udsp: Some(gate_udsp()),
             ..ValidationOptions::default()
         },
+        &Silent,
     )?;
     Ok(EmbeddedReference {
         atlas_sha256: atlas_sha,
@@ -96,7 +98,11 @@ pub fn options(cfg: &ValidateConfig) -> ValidationOptions {
 /// lock is held while computing: the solves run on rayon, whose waiting threads may pick up
 /// another case of the cohort, which would then wait for a lock its own thread holds. Two
 /// cases that start together may both compute it; the first result is kept.
-fn reference(atlas: &Atlas, options: &ValidationOptions) -> Result<Arc<Mechanics>, Error> {
+fn reference(
+    atlas: &Atlas,
+    options: &ValidationOptions,
+    progress: &dyn Reporter,
+) -> Result<Arc<Mechanics>, Error> {
     let key = (atlas_sha256(atlas)?, options.udsp.is_some());
     let cached = |key: &ReferenceKey| {
         let map = REFERENCES.lock().unwrap_or_else(|e| e.into_inner());
@@ -122,20 +128,23 @@ fn reference(atlas: &Atlas, options: &ValidationOptions) -> Result<Arc<Mechanics
             }));
         }
     }
-    let m = Arc::new(mechanics(atlas, atlas.nodes(), options)?);
+    progress.log("mechanics of the atlas (the reference)");
+    let m = Arc::new(mechanics(atlas, atlas.nodes(), options, progress)?);
     let mut map = REFERENCES.lock().unwrap_or_else(|e| e.into_inner());
     Ok(map.entry(key).or_insert(m).clone())
 }
 
-/// Validates `atlas` with its nodes at `registered` against `atlas` itself.
+/// Validates `atlas` with its nodes at `registered` against `atlas` itself, reporting to
+/// `progress`.
 pub fn validate_registered(
     atlas: &Atlas,
     registered: &[Point3<f64>],
     cfg: &ValidateConfig,
+    progress: &dyn Reporter,
 ) -> Result<Validation, Error> {
     let options = options(cfg);
-    let reference = reference(atlas, &options)?;
+    let reference = reference(atlas, &options, progress)?;
     Ok(validate_package_against(
-        &reference, atlas, registered, &options,
+        &reference, atlas, registered, &options, progress,
     )?)
 }

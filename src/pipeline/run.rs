@@ -694,7 +694,7 @@ fn validate(
     }
     progress.case_stage(&case.id, "validate");
     let t = Instant::now();
-    let v = validate_registered(atlas, nodes, &config.validate)?;
+    let v = validate_registered(atlas, nodes, &config.validate, progress)?;
     write_json_file(&out.join("mechanics.json"), &v)?;
     progress.log(&format!(
         "{}: mechanics against the atlas: {} ({} of {} gates failed)",
