@@ -25,3 +25,4 @@ mod phantom_cases;
 mod registration_accuracy;
 mod registration_real_anatomy;
 mod report_browser;
+mod robustness;
