@@ -437,6 +437,59 @@ fn a_frame_count_beyond_the_file_is_refused_before_anything_is_sized_by_it() {
     assert_bad_input(dir.path(), "NumberOfFrames (0028,0008) is 1000000000");
 }
 
+/// Three slices whose transfer syntax says explicit VR big endian over a little-endian body:
+/// every element length reads as gigabytes. The `dicom` crate reserved about 4 GB per file
+/// (7.5 GB for the three, scanned in parallel) before failing; now the lengths are checked
+/// against the file first, and the folder is refused within a 1 GiB address space.
+#[test]
+fn a_transfer_syntax_lying_about_byte_order_is_refused_before_any_allocation() {
+    let (dir, paths) = series_dir("byteorder");
+    for path in &paths[..3] {
+        let mut bytes = fs::read(path).unwrap();
+        let little = b"1.2.840.10008.1.2.1\0";
+        let at = bytes
+            .windows(little.len())
+            .position(|w| w == little)
+            .expect("an explicit VR little endian slice");
+        bytes[at..at + little.len()].copy_from_slice(b"1.2.840.10008.1.2.2\0");
+        fs::write(path, bytes).unwrap();
+    }
+    let out = std::process::Command::new("prlimit")
+        .arg(format!("--as={}", 1u64 << 30))
+        .arg(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(["inspect", dir.path().to_str().unwrap()])
+        .output()
+        .expect("prlimit (util-linux)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("element length") && stderr.contains("is its transfer syntax right?"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+}
+
+/// A symlink loop in a DICOM folder was followed by the input hashing at the end of a run
+/// (exit 1, after minutes of work, with the loop expanded 40 levels in the message); now ingest
+/// refuses it first, naming the folder and the link (exit 2).
+#[test]
+fn a_symlink_loop_in_a_dicom_folder_is_bad_input_named_once() {
+    for (a, b) in [("loop1", "loop2"), ("self", ".")] {
+        let (dir, _) = series_dir("links");
+        std::os::unix::fs::symlink(b, dir.path().join(a)).unwrap();
+        if b != "." {
+            std::os::unix::fs::symlink(a, dir.path().join(b)).unwrap();
+        }
+        let out = otoatlas(&["--quiet", "inspect", dir.path().to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        let named = format!("{}: symlink loop at ", dir.path().display());
+        assert!(stderr.contains(&named), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(!stderr.contains(&format!("{a}/{a}")), "{stderr}");
+    }
+}
+
 /// Byte patches of a file: (offset, bytes written there).
 type Patches = Vec<(usize, Vec<u8>)>;
 
@@ -502,6 +555,10 @@ fn nifti_headers_that_lie_are_refused_naming_the_field() {
     for (name, patches, needle) in cases {
         let path = patched_nifti(d, name, &patches);
         assert_bad_input(&path, needle);
+        // one line (the affine was printed as a matrix over five)
+        let out = otoatlas(&["--quiet", "inspect", path.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
     }
 }
 

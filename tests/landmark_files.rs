@@ -89,6 +89,35 @@ fn fcsv_columns_are_read_by_the_header_not_by_position() {
     );
 }
 
+/// Coordinates a file states in metres were read as millimetres (1000 times too small); now
+/// they are converted, with a note, and a unit that is not a length is refused by name.
+#[test]
+fn coordinates_in_metres_are_converted_and_unknown_units_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = r#"{"units":"m","umbo":[0.0125,-0.03025,0.101],
+        "incudomalleolar":[0.014,-0.027,0.1065],"incudostapedial":[0.01075,-0.0265,0.10325]}"#;
+    let read = read_landmarks(&write(&dir, "l.json", json)).unwrap();
+    assert_points(&read.landmarks, &expected());
+    assert!(
+        read.notes.iter().any(|n| n.contains("converted to mm")),
+        "{:?}",
+        read.notes
+    );
+    let mrk = r#"{"markups":[{"coordinateSystem":"LPS","coordinateUnits":"m","controlPoints":[
+        {"label":"umbo","position":[0.0125,-0.03025,0.101]},
+        {"label":"IMJ","position":[0.014,-0.027,0.1065]},
+        {"label":"ISJ","position":[0.01075,-0.0265,0.10325]}]}]}"#;
+    let read = read_landmarks(&write(&dir, "m.mrk.json", mrk)).unwrap();
+    assert_points(&read.landmarks, &expected());
+    let furlong = json.replace(r#""units":"m""#, r#""units":"furlong""#);
+    let err = read_landmarks(&write(&dir, "f.json", &furlong)).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains(r#"units "furlong": expected mm, cm, m or um"#),
+        "{err}"
+    );
+}
+
 #[test]
 fn mrk_json_json_and_csv() {
     let dir = tempfile::tempdir().unwrap();

@@ -26,3 +26,4 @@ mod phantom_cases;
 mod registration_accuracy;
 mod registration_real_anatomy;
 mod report_browser;
+mod robustness;

@@ -266,13 +266,62 @@ fn json_point(v: &Value, path: &Path, what: &str) -> Result<Point3<f64>, Landmar
     Ok(Point3::new(c(0)?, c(1)?, c(2)?))
 }
 
+/// Millimetres per unit of the `key` a file states (`mm` when absent), with a note when the
+/// coordinates are converted. Slicer writes `coordinateUnits` as a string or one per axis.
+fn unit_scale(
+    value: Option<&Value>,
+    key: &str,
+    path: &Path,
+) -> Result<(f64, Option<String>), LandmarkFileError> {
+    let unit = match value {
+        None | Some(Value::Null) => return Ok((1.0, None)),
+        Some(Value::String(s)) => s.clone(),
+        Some(Value::Array(units))
+            if !units.is_empty() && units.iter().all(|u| u.as_str() == units[0].as_str()) =>
+        {
+            units[0].as_str().unwrap_or_default().to_string()
+        }
+        Some(other) => {
+            return Err(parse_err(
+                path,
+                0,
+                format!("{key} is {other}; expected a unit of length such as \"mm\""),
+            ));
+        }
+    };
+    let scale = match unit.trim() {
+        "mm" => return Ok((1.0, None)),
+        "m" => 1000.0,
+        "cm" => 10.0,
+        "um" | "\u{b5}m" => 0.001,
+        other => {
+            return Err(parse_err(
+                path,
+                0,
+                format!("{key} {other:?}: expected mm, cm, m or um"),
+            ));
+        }
+    };
+    Ok((
+        scale,
+        Some(format!("coordinates in {unit} ({key}), converted to mm")),
+    ))
+}
+
 fn parse_mrk_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError> {
     let root = json_value(text, path)?;
     let markups = root["markups"]
         .as_array()
         .ok_or_else(|| parse_err(path, 0, "no \"markups\" array"))?;
     let mut collected = Collected::new(path);
+    let mut notes = Vec::new();
     for (m, markup) in markups.iter().enumerate() {
+        let (scale, note) = unit_scale(
+            markup.get("coordinateUnits"),
+            &format!("markups[{m}].coordinateUnits"),
+            path,
+        )?;
+        notes.extend(note);
         let this_frame = match markup.get("coordinateSystem").and_then(Value::as_str) {
             None => Frame::Lps, // the schema's default
             Some(s) => parse_frame(s).ok_or_else(|| {
@@ -294,14 +343,17 @@ fn parse_mrk_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileE
             }
             let what = format!("markups[{m}].controlPoints[{k}].position");
             // convert per markup, since two markups may use different systems
-            let p = to_lps(json_point(&cp["position"], path, &what)?, this_frame);
+            let p = to_lps(
+                json_point(&cp["position"], path, &what)? * scale,
+                this_frame,
+            );
             collected.add(label, p, k + 1)?;
         }
     }
     Ok(LandmarkFile {
         landmarks: collected.finish(Frame::Lps)?,
         side: None,
-        notes: Vec::new(),
+        notes,
     })
 }
 
@@ -327,16 +379,17 @@ fn parse_json(text: &str, path: &Path) -> Result<LandmarkFile, LandmarkFileError
                 .ok_or_else(|| parse_err(path, 0, format!("side {s:?}: expected left or right")))?,
         ),
     };
+    let (scale, note) = unit_scale(obj.get("units"), "units", path)?;
     let mut collected = Collected::new(path);
     for (k, (key, value)) in obj.iter().enumerate() {
         if LandmarkName::parse(key).is_some() {
-            collected.add(key, json_point(value, path, key)?, k + 1)?;
+            collected.add(key, json_point(value, path, key)? * scale, k + 1)?;
         }
     }
     Ok(LandmarkFile {
         landmarks: collected.finish(frame)?,
         side,
-        notes: Vec::new(),
+        notes: note.into_iter().collect(),
     })
 }
 

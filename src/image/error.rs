@@ -21,17 +21,26 @@ pub enum ImageError {
     #[error("{path}: cannot parse the DICOM file ({message}); is it truncated or corrupt?")]
     DicomParse { path: PathBuf, message: String },
     #[error(
-        "{path}: file is {size_mib:.0} MiB, above the limit of {max_mib:.0} MiB (ingest.max_file_mib)"
+        "{path}: file is {}, above the limit of {} (ingest.max_file_mib)",
+        mib(*.size_mib),
+        mib(*.max_mib)
     )]
     TooLarge {
         path: PathBuf,
         size_mib: f64,
         max_mib: f64,
     },
+    #[error(
+        "{folder}: symlink loop at {}; expected a folder of files (remove the link)",
+        link.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
+    )]
+    SymlinkLoop { folder: PathBuf, link: PathBuf },
     #[error("{path}: no DICOM image series found{}", skipped_note(.skipped))]
     NoImageSeries { path: PathBuf, skipped: usize },
     #[error(
-        "{path}: a volume of {dims} voxels takes {size_mib:.0} MiB, above the limit of {max_mib:.0} MiB (ingest.max_volume_mib)"
+        "{path}: a volume of {dims} voxels takes {}, above the limit of {} (ingest.max_volume_mib)",
+        mib(*.size_mib),
+        mib(*.max_mib)
     )]
     VolumeTooLarge {
         path: PathBuf,
@@ -120,9 +129,51 @@ pub enum ImageError {
     Nifti { path: PathBuf, message: String },
 }
 
+/// A size given in MiB, for a message: whole MiB from 10 MiB, three decimals from 1 MiB, else
+/// bytes (a limit below 1 MiB was shown as "0 MiB").
+fn mib(size: f64) -> String {
+    if size >= 10.0 {
+        format!("{size:.0} MiB")
+    } else if size >= 1.0 {
+        format!("{size:.3} MiB")
+    } else {
+        format!("{:.0} bytes", size * 1048576.0)
+    }
+}
+
 fn skipped_note(skipped: &usize) -> String {
     match skipped {
         0 => String::new(),
         n => format!(" ({n} non-image or non-DICOM files skipped)"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file of 20 KiB over a limit of 4 KiB was "0 MiB above the limit of 0 MiB".
+    #[test]
+    fn sizes_below_a_mebibyte_are_given_in_bytes() {
+        let e = ImageError::TooLarge {
+            path: PathBuf::from("a.dcm"),
+            size_mib: 20.0 / 1024.0,
+            max_mib: 4.0 / 1024.0,
+        };
+        assert_eq!(
+            e.to_string(),
+            "a.dcm: file is 20480 bytes, above the limit of 4096 bytes (ingest.max_file_mib)"
+        );
+        let e = ImageError::VolumeTooLarge {
+            path: PathBuf::from("b.nii"),
+            dims: "9x9x9".into(),
+            size_mib: 3000.4,
+            max_mib: 2.5,
+        };
+        assert!(
+            e.to_string()
+                .ends_with("takes 3000 MiB, above the limit of 2.500 MiB (ingest.max_volume_mib)"),
+            "{e}"
+        );
     }
 }

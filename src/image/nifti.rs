@@ -41,6 +41,20 @@ struct Header {
     little_endian: bool,
 }
 
+/// A matrix on one line, rows separated by `;` (error messages are one line).
+fn one_line(m: &Matrix4<f64>) -> String {
+    let rows: Vec<String> = m
+        .row_iter()
+        .map(|r| {
+            r.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect();
+    format!("[{}]", rows.join("; "))
+}
+
 fn field_err(
     path: &Path,
     field: &'static str,
@@ -594,7 +608,7 @@ fn geometry(h: &Header, path: &Path) -> Result<Geometry, ImageError> {
         return Err(field_err(
             path,
             "affine",
-            format!("{affine}"),
+            one_line(&affine),
             "finite numbers (origin and voxel axes)",
         ));
     }
@@ -608,7 +622,7 @@ fn geometry(h: &Header, path: &Path) -> Result<Geometry, ImageError> {
             return Err(field_err(
                 path,
                 "affine",
-                format!("{affine}"),
+                one_line(&affine),
                 "three non-degenerate voxel axes",
             ));
         }
@@ -619,7 +633,7 @@ fn geometry(h: &Header, path: &Path) -> Result<Geometry, ImageError> {
         return Err(field_err(
             path,
             "affine",
-            format!("{affine}"),
+            one_line(&affine),
             "linearly independent voxel axes",
         ));
     }

@@ -2,6 +2,7 @@
 //! [`Volume`] in LPS millimetres and Hounsfield units.
 
 mod geometry;
+mod lengths;
 pub mod patient;
 mod pixels;
 mod scan;

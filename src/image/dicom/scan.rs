@@ -102,6 +102,12 @@ pub fn list_files(root: &Path) -> Result<Vec<PathBuf>, ImageError> {
                 path: path.clone(),
                 source,
             })?;
+            if kind.is_symlink() && is_link_loop(&path, root) {
+                return Err(ImageError::SymlinkLoop {
+                    folder: root.to_path_buf(),
+                    link: path,
+                });
+            }
             if kind.is_dir() {
                 stack.push(path);
             } else if kind.is_file() || (kind.is_symlink() && path.is_file()) {
@@ -111,6 +117,27 @@ pub fn list_files(root: &Path) -> Result<Vec<PathBuf>, ImageError> {
     }
     out.sort();
     Ok(out)
+}
+
+/// True if the symbolic link `link` under `root` never resolves (a chain of links that loops)
+/// or resolves to `root` or a folder above it: either would make anything that follows links
+/// through the folder (hashing a case's inputs) go round until the system refuses.
+fn is_link_loop(link: &Path, root: &Path) -> bool {
+    match fs::canonicalize(link) {
+        Ok(target) => fs::canonicalize(root).is_ok_and(|root| root.starts_with(&target)),
+        Err(e) => {
+            // ELOOP: on Linux, 40 (std has no stable ErrorKind for it)
+            #[cfg(target_os = "linux")]
+            {
+                e.raw_os_error() == Some(rustix::io::Errno::LOOP.raw_os_error())
+            }
+            #[cfg(not(target_os = "linux"))]
+            {
+                let _ = e;
+                false
+            }
+        }
+    }
 }
 
 /// True if the file carries the DICM marker of a DICOM Part 10 file.
@@ -161,6 +188,16 @@ fn scan_file(path: &Path, max_bytes: u64) -> Result<Scanned, ImageError> {
             path: path.to_path_buf(),
             reason: "not a DICOM file".into(),
         });
+    }
+    match super::lengths::check_element_lengths(path, size) {
+        Ok(()) => {}
+        Err(e) if is_dicomdir_name(path) => {
+            return Ok(Scanned::Skipped {
+                path: path.to_path_buf(),
+                reason: format!("unreadable DICOMDIR index ({e})"),
+            });
+        }
+        Err(e) => return Err(e),
     }
     let obj = match OpenFileOptions::new()
         .read_until(tags::PIXEL_DATA)

@@ -133,7 +133,7 @@ pub fn read_ply(path: &Path) -> Result<(TriMesh, VertexAttributes), MeshIoError>
             MeshIoError::parse(
                 path,
                 "PLY header or body",
-                format!("a valid PLY file ({e})"),
+                format!("a valid PLY file ({})", parser_message(&e.to_string())),
             )
         })?;
     let empty = Vec::new();
@@ -190,10 +190,43 @@ pub fn read_ply(path: &Path) -> Result<(TriMesh, VertexAttributes), MeshIoError>
     Ok((mesh, attrs))
 }
 
+/// The PLY parser's message in one line: its first line and the text it could not parse,
+/// without the grammar's internal state it appends.
+fn parser_message(message: &str) -> String {
+    let mut lines = message.lines();
+    let first = lines.next().unwrap_or_default().trim_end_matches('.');
+    match lines.find_map(|l| l.trim().strip_prefix("String: ")) {
+        Some(text) => format!("{first}: {}", text.trim_matches(['\'', '\n'])),
+        None => first.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::io::test_meshes::cube_surface;
+
+    /// The parser's error was three lines ending in its grammar's Debug text
+    /// (`Error: ParseError { location: LineCol { .. }, expected: ExpectedSet { .. } }`).
+    #[test]
+    fn a_bad_header_line_is_named_in_one_line_without_debug_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.ply");
+        std::fs::write(
+            &path,
+            "ply\nformat ascii 1.0\nelement vertex x\nend_header\n",
+        )
+        .unwrap();
+        let message = read_ply(&path).unwrap_err().to_string();
+        assert!(
+            message.ends_with("(Line 3: Couldn't parse line: element vertex x)"),
+            "{message}"
+        );
+        assert!(
+            !message.contains('\n') && !message.contains("ParseError"),
+            "{message}"
+        );
+    }
 
     #[test]
     fn binary_round_trip_with_quality_and_colours() {
