@@ -23,6 +23,7 @@ use summary::{summary, verdict};
 use super::error::ReportError;
 use super::html::{Figure, FigureContent, Page};
 use super::metrics::{DeformSummary, Scores};
+use super::overlay::OUTSIDE_IMAGE;
 use super::plot::{Series, line_chart_svg};
 use super::slices::{
     OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR, overlay_figures,
@@ -146,6 +147,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     if reference.is_some() {
         legend.push(("manual segmentation", SEGMENTATION_COLOUR));
     }
+    legend.push(("beyond the image (hatched)", OUTSIDE_IMAGE[0]));
     page.legend(&legend);
     match &input.accuracy {
         Accuracy::NoSegmentation => page.paragraph(
