@@ -98,11 +98,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
             path: dir.clone(),
             source,
         })?;
-        let charts = validation_plots(&validation).map_err(|e| Error::Report {
-            path: dir.clone(),
-            source: e.into(),
-        })?;
-        for (name, svg) in charts {
+        for (name, svg) in validation_plots(&validation) {
             let path = dir.join(name);
             crate::io_util::write_atomic(&path, svg.as_bytes())?;
         }

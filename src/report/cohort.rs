@@ -10,7 +10,7 @@ use super::html::{Cell, Figure, FigureContent, Page};
 use super::metrics::{
     CaseMetrics, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics, anatomical_order,
 };
-use super::plot::box_plot_svg;
+use super::plot::{SMALL_N, Target, box_plot_svg};
 use crate::atlas::Part;
 use crate::meshdev::SurfaceDistances;
 
@@ -77,7 +77,7 @@ fn worst_ossicle(scores: &BTreeMap<String, StructureMetrics>) -> Option<(&str, &
 pub fn cohort_report(entries: &[CohortEntry]) -> Result<CohortReport, ReportError> {
     let outcomes: Vec<Outcome> = entries.iter().map(outcome).collect();
     Ok(CohortReport {
-        html: html(entries, &outcomes)?,
+        html: html(entries, &outcomes),
         csv: csv(entries, &outcomes),
     })
 }
@@ -176,7 +176,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
     out
 }
 
-fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> Result<String, ReportError> {
+fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
     let mut page = Page::new("otoatlas cohort report");
     let count = |status: &str| outcomes.iter().filter(|o| o.status() == status).count();
     page.heading("Summary").table(
@@ -229,16 +229,29 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> Result<String, ReportE
                 hd95.push((part.name().to_string(), values(|d| d.hd95)));
             }
         }
-        page.figures(&[
-            Figure {
-                caption: format!("MASD per structure (target ≤ {MASD_TARGET_MM} mm per ossicle)"),
-                content: FigureContent::Svg(box_plot_svg("MASD", "MASD (mm)", &masd)?),
-            },
-            Figure {
-                caption: format!("HD95 per structure (target ≤ {HD95_TARGET_MM} mm per ossicle)"),
-                content: FigureContent::Svg(box_plot_svg("HD95", "HD95 (mm)", &hd95)?),
-            },
-        ]);
+        let figures: Vec<Figure> = [
+            ("MASD", masd, MASD_TARGET_MM),
+            ("HD95", hd95, HD95_TARGET_MM),
+        ]
+        .into_iter()
+        .map(|(metric, groups, target)| Figure {
+            caption: format!(
+                "{metric} per structure across cases (box: quartiles and median; whiskers: the \
+                 furthest cases within 1.5 interquartile ranges; every case a point when fewer \
+                 than {SMALL_N})"
+            ),
+            content: FigureContent::Svg(box_plot_svg(
+                metric,
+                &format!("{metric} (mm)"),
+                &groups,
+                Some(&Target {
+                    value: target,
+                    label: format!("target ≤ {target} mm (ossicles)"),
+                }),
+            )),
+        })
+        .collect();
+        page.figures(&figures);
         worst_cases(&mut page, &scored);
     }
 
@@ -259,7 +272,7 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> Result<String, ReportE
     } else {
         page.table_cells(&["case", "error"], &failed);
     }
-    Ok(page.finish())
+    page.finish()
 }
 
 fn worst_cases(page: &mut Page, scored: &[(&CohortEntry, &BTreeMap<String, StructureMetrics>)]) {

@@ -1,29 +1,29 @@
 //! SVG charts of a validation: the TF magnitude against the Goode band (and the atlas, for a
-//! package), the TF phase, and the UDSP curve.
+//! package), the TF phase, and the UDSP curve. Frequencies run on a log axis labelled in Hz.
 
-use plotters::style::RGBColor;
-
-use super::plot::{PlotError, Series, line_chart_svg};
+use super::plot::{AxisSpec, Colour, Series, line_chart_svg};
 use crate::mechanics::verdict::GOODE_BAND;
 use crate::mechanics::{StaticCurve, TransferFunction, Validation};
 
-const MODEL: RGBColor = RGBColor(200, 60, 40);
-const ATLAS: RGBColor = RGBColor(60, 90, 180);
-const BAND: RGBColor = RGBColor(150, 150, 150);
+const MODEL: Colour = [200, 60, 40];
+const ATLAS: Colour = [60, 90, 180];
+const BAND: Colour = [150, 150, 150];
+/// The name of both edges of the band (one legend entry).
+const BAND_NAME: &str = "Goode et al. 1994 band";
 
 /// (file name, SVG) of every chart of `v` (no UDSP chart when the curve was not computed).
-pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, PlotError> {
+pub fn validation_plots(v: &Validation) -> Vec<(&'static str, String)> {
     let tf = &v.mechanics.transfer_function;
     let mag = |t: &TransferFunction| -> Vec<(f64, f64)> {
         t.points
             .iter()
-            .map(|p| (p.frequency_hz.log10(), p.magnitude_um_s_per_pa))
+            .map(|p| (p.frequency_hz, p.magnitude_um_s_per_pa))
             .collect()
     };
     let phase = |t: &TransferFunction| -> Vec<(f64, f64)> {
         t.points
             .iter()
-            .map(|p| (p.frequency_hz.log10(), p.phase_deg))
+            .map(|p| (p.frequency_hz, p.phase_deg))
             .collect()
     };
     let umbo = |c: &StaticCurve| -> Vec<(f64, f64)> {
@@ -32,8 +32,8 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, P
             .map(|p| (p.pressure_pa, p.umbo_mm * 1e3))
             .collect()
     };
-    let low: Vec<(f64, f64)> = GOODE_BAND.iter().map(|b| (b.0.log10(), b.1)).collect();
-    let high: Vec<(f64, f64)> = GOODE_BAND.iter().map(|b| (b.0.log10(), b.2)).collect();
+    let low: Vec<(f64, f64)> = GOODE_BAND.iter().map(|b| (b.0, b.1)).collect();
+    let high: Vec<(f64, f64)> = GOODE_BAND.iter().map(|b| (b.0, b.2)).collect();
     let (m, p, u) = (mag(tf), phase(tf), umbo(&v.mechanics.udsp));
     let reference = v.reference.as_ref();
     let (rm, rp, ru) = reference.map_or((vec![], vec![], vec![]), |r| {
@@ -47,66 +47,65 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, P
         Series {
             name: "model",
             points: &m,
-            color: MODEL,
+            colour: MODEL,
         },
         Series {
-            name: "Goode band low",
+            name: BAND_NAME,
             points: &low,
-            color: BAND,
+            colour: BAND,
         },
         Series {
-            name: "Goode band high",
+            name: BAND_NAME,
             points: &high,
-            color: BAND,
+            colour: BAND,
         },
     ];
     let mut phase_series = vec![Series {
         name: "model",
         points: &p,
-        color: MODEL,
+        colour: MODEL,
     }];
     let mut udsp_series = vec![Series {
         name: "model",
         points: &u,
-        color: MODEL,
+        colour: MODEL,
     }];
     if reference.is_some() {
         mag_series.push(Series {
             name: "atlas",
             points: &rm,
-            color: ATLAS,
+            colour: ATLAS,
         });
         phase_series.push(Series {
             name: "atlas",
             points: &rp,
-            color: ATLAS,
+            colour: ATLAS,
         });
         udsp_series.push(Series {
             name: "atlas",
             points: &ru,
-            color: ATLAS,
+            colour: ATLAS,
         });
     }
+    let frequency = AxisSpec::hertz("frequency (Hz)");
     let mut charts = vec![
         (
             "tf_magnitude.svg",
             line_chart_svg(
                 "Stapes velocity / ear-canal pressure",
-                "log10 frequency (Hz)",
-                "|H_V| (um/s/Pa)",
+                frequency,
+                AxisSpec::log("|H_V| (um/s/Pa)"),
                 &mag_series,
-                true,
-            )?,
+            ),
         ),
         (
             "tf_phase.svg",
             line_chart_svg(
                 "Stapes velocity phase",
-                "log10 frequency (Hz)",
-                "phase (degrees)",
+                frequency,
+                AxisSpec::linear("phase (degrees)"),
                 &phase_series,
-                false,
-            )?,
+            ),
         ),
     ];
     if !u.is_empty() {
@@ -114,12 +113,11 @@ pub fn validation_plots(v: &Validation) -> Result<Vec<(&'static str, String)>, P
             "udsp.svg",
             line_chart_svg(
                 "Umbo displacement under static pressure (+ = medial)",
-                "pressure, ear canal - middle ear (Pa)",
-                "umbo displacement (um)",
+                AxisSpec::linear("pressure, ear canal - middle ear (Pa)"),
+                AxisSpec::linear("umbo displacement (um)"),
                 &udsp_series,
-                false,
-            )?,
+            ),
         ));
     }
-    Ok(charts)
+    charts
 }

@@ -1,6 +1,7 @@
 //! Reports a person reads to accept or reject a case or a cohort: charts (SVG), slice overlays
 //! (PNG) and the self-contained HTML page that holds them.
 
+pub mod axis;
 pub mod case;
 pub mod cohort;
 pub mod error;

@@ -1,6 +1,8 @@
 //! Slice overlays: a CBCT slice through a point, resampled on a world-aligned plane (axial,
 //! coronal or sagittal in patient space, whatever the scan's orientation), grey-scaled by a
 //! window, with the contours of surface meshes drawn where they cut the plane. Encoded as PNG.
+//! Where the plane leaves the image the slice is hatched in pale blue (`OUTSIDE_IMAGE`), which
+//! no CT grey is, so that the image's edge does not pass for air.
 //!
 //! Views follow the radiological convention: axial seen from the feet (patient right on the
 //! image left, anterior up), coronal seen from the front (right on the left, superior up),
@@ -10,6 +12,11 @@ use nalgebra::{Point3, Vector3};
 
 use crate::image::Sampler;
 use crate::mesh::TriMesh;
+
+/// The two colours of the diagonal hatching beyond the image.
+pub const OUTSIDE_IMAGE: [[u8; 3]; 2] = [[214, 224, 238], [236, 241, 248]];
+/// Width of one stripe of the hatching \[pixels\].
+const HATCH_PIXELS: usize = 4;
 
 /// The three standard planes of patient space.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,10 +114,12 @@ pub fn render_slice(sampler: &Sampler, spec: &SliceSpec, contours: &[Contour]) -
             let p = corner
                 + u * ((x as f64 + 0.5) * spec.pixel_mm)
                 + v * ((y as f64 + 0.5) * spec.pixel_mm);
-            let grey = sampler.sample(&p).map_or(0u8, |value| {
-                (((value - lo) / (hi - lo)).clamp(0.0, 1.0) * 255.0).round() as u8
-            });
-            image.pixels[y * n + x] = [grey; 3];
+            image.pixels[y * n + x] = match sampler.sample(&p) {
+                Some(value) => {
+                    [(((value - lo) / (hi - lo)).clamp(0.0, 1.0) * 255.0).round() as u8; 3]
+                }
+                None => OUTSIDE_IMAGE[(x + y) / HATCH_PIXELS % 2],
+            };
         }
     }
     let normal = u.cross(&v);
@@ -213,5 +222,31 @@ mod tests {
         assert_eq!(img.pixels[30 * 60 + 25], [0; 3]);
         let png = img.to_png().unwrap();
         assert_eq!(&png[1..4], b"PNG");
+    }
+
+    #[test]
+    fn beyond_the_image_the_slice_is_hatched_not_black() {
+        // the volume spans -2..2 mm; a 6 mm field centred at x = 2 mm leaves it on the right
+        let (v, _) = scene();
+        let sampler = Sampler::new(&v).unwrap();
+        let spec = SliceSpec {
+            view: View::Axial,
+            centre: Point3::new(2.0, 0.0, 0.0),
+            half_width_mm: 3.0,
+            pixel_mm: 0.1,
+            window: (0.0, 1000.0),
+        };
+        let img = render_slice(&sampler, &spec, &[]);
+        let at = |x: usize, y: usize| img.pixels[y * 60 + x];
+        // inside: the dark half black, the bright half white (x = -0.45 and 1.55 mm)
+        assert_eq!((at(5, 30), at(25, 30)), ([0; 3], [255; 3]));
+        // beyond x = 2 mm and beyond y = ±2 mm: hatched in both colours, never black
+        let outside: Vec<[u8; 3]> = (0..60)
+            .flat_map(|y| (0..60).map(move |x| (x, y)))
+            .filter(|&(x, y)| x >= 31 || !(10..50).contains(&y))
+            .map(|(x, y)| at(x, y))
+            .collect();
+        assert!(outside.iter().all(|p| OUTSIDE_IMAGE.contains(p)));
+        assert!(OUTSIDE_IMAGE.iter().all(|c| outside.contains(c)));
     }
 }

@@ -1,36 +1,438 @@
-//! Charts for the reports, as standalone SVG strings (plotters' SVG backend, no fonts or
-//! system libraries needed): signed-distance histograms, convergence curves, box plots.
+//! Charts for the reports, as standalone SVG documents (the `svg` crate writes them): histograms
+//! of signed distances, line charts (convergence, transfer function, static pressure) and box
+//! plots of a cohort.
+//!
+//! Every chart is laid out by one `Frame`: the title on top, the legend at the bottom, outside
+//! the data, and the plot area in between, its margins computed from the extents of the axes'
+//! labels so that no label is clipped. The axes' ticks come from `axis`, the one tick engine.
+//! The SVG names what a reader or a checker looks for: the `x-axis` and `y-axis` groups (with
+//! `data-scale` and `data-numbers`) and their `tick-label` texts, the `series` polylines, the
+//! `point` circles, the `target` lines and the `legend` group.
 
-use plotters::prelude::*;
+use svg::node::element::{Circle, Group, Line, Polyline, Rectangle, Text};
+use svg::{Document, Node};
 
-/// A chart could not be drawn.
-#[derive(Debug, thiserror::Error)]
-#[error("cannot draw the chart {chart:?}: {message}")]
-pub struct PlotError {
-    pub chart: String,
-    pub message: String,
+use super::axis::{Axis, Direction, FONT_PX, Numbers, Scale, text_width};
+
+/// An RGB colour.
+pub type Colour = [u8; 3];
+
+/// Size of every chart \[px\].
+const WIDTH: f64 = 560.0;
+const HEIGHT: f64 = 320.0;
+/// Space between the figure's edge and anything drawn \[px\].
+const MARGIN: f64 = 8.0;
+/// Font size of the title \[px\].
+const TITLE_PX: f64 = 14.0;
+/// Length of a tick mark \[px\].
+const TICK: f64 = 4.0;
+/// From the x axis down to its labels' baseline \[px\]: below the lowest y label, which is
+/// centred on the axis, so that the two never touch in the corner.
+const LABEL_DROP: f64 = TICK + 5.0 + FONT_PX;
+/// Height of one row of the legend \[px\].
+const LEGEND_ROW: f64 = 1.7 * FONT_PX;
+/// Length of a legend entry's line sample \[px\], and the space after an entry.
+const SWATCH: f64 = 18.0;
+const ENTRY_GAP: f64 = 16.0;
+/// Box plots of fewer values than this show every value as a point.
+pub const SMALL_N: usize = 10;
+const INK: &str = "#222222";
+const GRID: &str = "#dddddd";
+const MINOR_GRID: &str = "#f0f0f0";
+const BAR: Colour = [70, 110, 190];
+const POINT: Colour = [40, 40, 40];
+const TARGET: Colour = [200, 40, 40];
+
+/// What an axis shows: its title, scale and kind of numbers.
+#[derive(Debug, Clone, Copy)]
+pub struct AxisSpec<'a> {
+    pub title: &'a str,
+    pub scale: Scale,
+    pub numbers: Numbers,
 }
 
-fn plot_err(chart: &str) -> impl Fn(String) -> PlotError + '_ {
-    move |message| PlotError {
-        chart: chart.to_string(),
-        message,
+impl<'a> AxisSpec<'a> {
+    /// Real values on a linear scale.
+    pub fn linear(title: &'a str) -> Self {
+        Self::new(title, Scale::Linear, Numbers::Real)
+    }
+
+    /// Positive real values on a log scale.
+    pub fn log(title: &'a str) -> Self {
+        Self::new(title, Scale::Log, Numbers::Real)
+    }
+
+    /// Counts (iterations, rounds) on a linear scale, in whole numbers.
+    pub fn counts(title: &'a str) -> Self {
+        Self::new(title, Scale::Linear, Numbers::Integer)
+    }
+
+    /// Frequencies on a log scale, in Hz.
+    pub fn hertz(title: &'a str) -> Self {
+        Self::new(title, Scale::Log, Numbers::Hertz)
+    }
+
+    fn new(title: &'a str, scale: Scale, numbers: Numbers) -> Self {
+        AxisSpec {
+            title,
+            scale,
+            numbers,
+        }
     }
 }
 
-const SIZE: (u32, u32) = (560, 320);
+/// One named curve of (x, y) points.
+pub struct Series<'a> {
+    pub name: &'a str,
+    pub points: &'a [(f64, f64)],
+    pub colour: Colour,
+}
 
-/// A histogram of `values` (weighted) over `range` in `bins` bins; values outside are counted
-/// in the end bins so that nothing is silently dropped.
+/// A horizontal target line of a box plot, named in the legend (e.g. "target ≤ 0.2 mm").
+pub struct Target {
+    pub value: f64,
+    pub label: String,
+}
+
+/// How a legend entry is drawn.
+#[derive(Clone, Copy)]
+enum Mark {
+    Line(Colour),
+    Dashed(Colour),
+    Dot(Colour),
+}
+
+/// The horizontal axis of a chart: values, or one slot per named group.
+enum Horizontal<'a> {
+    Values {
+        spec: AxisSpec<'a>,
+        lo: f64,
+        hi: f64,
+    },
+    Groups(&'a [String]),
+}
+
+/// A chart's layout: the plot area `left..right` × `top..bottom` \[px\], its axes and legend.
+struct Frame<'a> {
+    title: &'a str,
+    left: f64,
+    right: f64,
+    top: f64,
+    bottom: f64,
+    x: Option<(Axis, &'a str)>,
+    groups: &'a [String],
+    y: Axis,
+    y_title: &'a str,
+    /// Legend rows: the entries of each with their left edge \[px\].
+    legend: Vec<Vec<(f64, String, Mark)>>,
+}
+
+/// Rounded to a tenth of a pixel, for short and stable SVG.
+fn px(v: f64) -> f64 {
+    (v * 10.0).round() / 10.0
+}
+
+fn rgb([r, g, b]: Colour) -> String {
+    format!("#{r:02x}{g:02x}{b:02x}")
+}
+
+impl<'a> Frame<'a> {
+    /// Lays out a chart: legend rows first (their height), then the y axis in the height left,
+    /// then the margins from the y labels' width and the x labels' overhang.
+    fn new(
+        title: &'a str,
+        horizontal: Horizontal<'a>,
+        y: (AxisSpec<'a>, f64, f64),
+        legend: Vec<(String, Mark)>,
+    ) -> Frame<'a> {
+        let legend = legend_rows(legend);
+        let top = MARGIN + 1.4 * TITLE_PX;
+        let bottom = HEIGHT
+            - MARGIN
+            - legend.len() as f64 * LEGEND_ROW
+            - 1.5 * FONT_PX // the x axis title
+            - LABEL_DROP
+            - 0.3 * FONT_PX // the tick labels' descent
+            - 2.0;
+        let (spec, lo, hi) = y;
+        let y_axis = Axis::new(
+            lo,
+            hi,
+            spec.scale,
+            spec.numbers,
+            bottom - top,
+            Direction::Vertical,
+        );
+        let mut left = MARGIN + 1.6 * FONT_PX + y_axis.widest_label() + TICK + 4.0;
+        let mut right = WIDTH - MARGIN;
+        let (x, groups) = match horizontal {
+            Horizontal::Groups(groups) => (None, groups),
+            Horizontal::Values { spec, lo, hi } => {
+                // the end labels are centred on the ends of the axis: room for their halves
+                let mut axis;
+                loop {
+                    axis = Axis::new(
+                        lo,
+                        hi,
+                        spec.scale,
+                        spec.numbers,
+                        right - left,
+                        Direction::Horizontal,
+                    );
+                    let half = |t: Option<&super::axis::Tick>| {
+                        t.map_or(0.0, |t| text_width(&t.label, FONT_PX) / 2.0)
+                    };
+                    let need_right = WIDTH - MARGIN - half(axis.ticks.last());
+                    let need_left = MARGIN + half(axis.ticks.first());
+                    if right <= need_right && left >= need_left {
+                        break;
+                    }
+                    right = right.min(need_right);
+                    left = left.max(need_left);
+                }
+                (Some((axis, spec.title)), &[][..])
+            }
+        };
+        Frame {
+            title,
+            left,
+            right,
+            top,
+            bottom,
+            x,
+            groups,
+            y: y_axis,
+            y_title: spec.title,
+            legend,
+        }
+    }
+
+    fn x_px(&self, v: f64) -> f64 {
+        let axis = self.x.as_ref().map(|(a, _)| a);
+        self.left + axis.map_or(0.0, |a| a.fraction(v)) * (self.right - self.left)
+    }
+
+    fn y_px(&self, v: f64) -> f64 {
+        self.bottom - self.y.fraction(v) * (self.bottom - self.top)
+    }
+
+    /// The centre of group `k`'s slot and the slot's width \[px\].
+    fn slot(&self, k: usize) -> (f64, f64) {
+        let width = (self.right - self.left) / self.groups.len().max(1) as f64;
+        (self.left + (k as f64 + 0.5) * width, width)
+    }
+
+    /// The document with the background, the title and the grid, ready for the data.
+    fn document(&self) -> Document {
+        let mut grid = Group::new().set("class", "grid");
+        let mut gridline = |v: f64, colour: &str| {
+            let y = px(self.y_px(v));
+            grid.append(line((self.left, y), (self.right, y), colour, 1.0));
+        };
+        for v in &self.y.minor {
+            gridline(*v, MINOR_GRID);
+        }
+        for t in &self.y.ticks {
+            gridline(t.value, GRID);
+        }
+        if let Some((x, _)) = &self.x {
+            for (values, colour) in [
+                (x.minor.clone(), MINOR_GRID),
+                (x.ticks.iter().map(|t| t.value).collect(), GRID),
+            ] {
+                for v in values {
+                    let at = px(self.x_px(v));
+                    grid.append(line((at, self.top), (at, self.bottom), colour, 1.0));
+                }
+            }
+        }
+        Document::new()
+            .set("class", "chart")
+            .set("width", WIDTH)
+            .set("height", HEIGHT)
+            .set("viewBox", (0, 0, WIDTH, HEIGHT))
+            .set("font-family", "sans-serif")
+            .set("font-size", FONT_PX)
+            .add(
+                Rectangle::new()
+                    .set("width", WIDTH)
+                    .set("height", HEIGHT)
+                    .set("fill", "#ffffff"),
+            )
+            .add(
+                text(WIDTH / 2.0, MARGIN + TITLE_PX, self.title, "middle")
+                    .set("class", "title")
+                    .set("font-size", TITLE_PX),
+            )
+            .add(grid)
+    }
+
+    /// The axes, ticks, labels and titles, and the legend, over the data.
+    fn finish(&self, document: Document) -> String {
+        let (l, r, t, b) = (px(self.left), px(self.right), px(self.top), px(self.bottom));
+        let mut x_group = Group::new()
+            .set("class", "x-axis")
+            .add(line((l, b), (r, b), INK, 1.0));
+        let label_y = b + LABEL_DROP;
+        match &self.x {
+            Some((axis, title)) => {
+                x_group = x_group
+                    .set("data-scale", scale_name(axis.scale))
+                    .set("data-numbers", axis.numbers.name());
+                for tick in &axis.ticks {
+                    let at = px(self.x_px(tick.value));
+                    x_group = x_group.add(line((at, b), (at, b + TICK), INK, 1.0)).add(
+                        text(at, label_y, &tick.label, "middle")
+                            .set("class", "tick-label")
+                            .set("data-value", tick.value),
+                    );
+                }
+                x_group = x_group.add(
+                    text((l + r) / 2.0, label_y + 1.4 * FONT_PX, title, "middle")
+                        .set("class", "axis-title"),
+                );
+            }
+            None => {
+                x_group = x_group.set("data-scale", "groups");
+                for (k, name) in self.groups.iter().enumerate() {
+                    let at = px(self.slot(k).0);
+                    x_group =
+                        x_group.add(text(at, label_y, name, "middle").set("class", "group-label"));
+                }
+            }
+        }
+        let mut y_group = Group::new()
+            .set("class", "y-axis")
+            .set("data-scale", scale_name(self.y.scale))
+            .set("data-numbers", self.y.numbers.name())
+            .add(line((l, t), (l, b), INK, 1.0));
+        for tick in &self.y.ticks {
+            let at = px(self.y_px(tick.value));
+            y_group = y_group.add(line((l - TICK, at), (l, at), INK, 1.0)).add(
+                text(l - TICK - 3.0, at + 0.35 * FONT_PX, &tick.label, "end")
+                    .set("class", "tick-label")
+                    .set("data-value", tick.value),
+            );
+        }
+        let (tx, ty) = (px(MARGIN + FONT_PX), px((t + b) / 2.0));
+        y_group = y_group.add(
+            text(tx, ty, self.y_title, "middle")
+                .set("class", "axis-title")
+                .set("transform", format!("rotate(-90 {tx} {ty})")),
+        );
+        let mut document = document.add(x_group).add(y_group);
+        if !self.legend.is_empty() {
+            document = document.add(self.legend_group());
+        }
+        document.to_string()
+    }
+
+    fn legend_group(&self) -> Group {
+        let mut group = Group::new().set("class", "legend");
+        let first_row = HEIGHT - MARGIN - self.legend.len() as f64 * LEGEND_ROW;
+        for (row, entries) in self.legend.iter().enumerate() {
+            let mid = px(first_row + (row as f64 + 0.5) * LEGEND_ROW);
+            for (x, label, mark) in entries {
+                let x = px(*x);
+                let sample: Box<dyn Node> = match *mark {
+                    Mark::Line(c) => Box::new(line((x, mid), (x + SWATCH, mid), &rgb(c), 2.0)),
+                    Mark::Dashed(c) => Box::new(
+                        line((x, mid), (x + SWATCH, mid), &rgb(c), 1.5)
+                            .set("stroke-dasharray", "5 3"),
+                    ),
+                    Mark::Dot(c) => Box::new(dot(x + SWATCH / 2.0, mid, c)),
+                };
+                group = group.add(sample).add(text(
+                    x + SWATCH + 5.0,
+                    mid + 0.35 * FONT_PX,
+                    label,
+                    "start",
+                ));
+            }
+        }
+        group
+    }
+}
+
+/// Lays the legend out in rows, each centred in the figure's width: (left edge, label, mark).
+fn legend_rows(entries: Vec<(String, Mark)>) -> Vec<Vec<(f64, String, Mark)>> {
+    let width = |label: &str| SWATCH + 5.0 + text_width(label, FONT_PX);
+    let mut rows: Vec<Vec<(String, Mark)>> = Vec::new();
+    let mut used = f64::MAX;
+    for (label, mark) in entries {
+        let w = width(&label);
+        if used + ENTRY_GAP + w > WIDTH - 2.0 * MARGIN {
+            rows.push(Vec::new());
+            used = -ENTRY_GAP;
+        }
+        used += ENTRY_GAP + w;
+        if let Some(row) = rows.last_mut() {
+            row.push((label, mark));
+        }
+    }
+    rows.into_iter()
+        .map(|row| {
+            let total: f64 = row.iter().map(|(l, _)| width(l)).sum::<f64>()
+                + ENTRY_GAP * (row.len().saturating_sub(1)) as f64;
+            let mut x = (WIDTH - total) / 2.0;
+            row.into_iter()
+                .map(|(label, mark)| {
+                    let at = x;
+                    x += width(&label) + ENTRY_GAP;
+                    (at, label, mark)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn scale_name(scale: Scale) -> &'static str {
+    match scale {
+        Scale::Linear => "linear",
+        Scale::Log => "log",
+    }
+}
+
+fn line(a: (f64, f64), b: (f64, f64), colour: &str, width: f64) -> Line {
+    Line::new()
+        .set("x1", px(a.0))
+        .set("y1", px(a.1))
+        .set("x2", px(b.0))
+        .set("y2", px(b.1))
+        .set("stroke", colour)
+        .set("stroke-width", width)
+}
+
+fn text(x: f64, y: f64, content: &str, anchor: &str) -> Text {
+    Text::new(content)
+        .set("x", px(x))
+        .set("y", px(y))
+        .set("text-anchor", anchor)
+        .set("fill", INK)
+}
+
+fn dot(x: f64, y: f64, colour: Colour) -> Circle {
+    Circle::new()
+        .set("class", "point")
+        .set("cx", px(x))
+        .set("cy", px(y))
+        .set("r", 3)
+        .set("fill", rgb(colour))
+        .set("fill-opacity", 0.6)
+        .set("stroke", rgb(colour))
+}
+
+/// A histogram of `values` (weighted) over `range` in `bins` bins, as percentages of the
+/// total weight; values outside are counted in the end bins so that nothing is silently
+/// dropped.
 pub fn histogram_svg(
     title: &str,
-    x_label: &str,
+    x_title: &str,
     values: &[f64],
     weights: Option<&[f64]>,
     range: (f64, f64),
     bins: usize,
-) -> Result<String, PlotError> {
-    let err = plot_err(title);
+) -> String {
     let bins = bins.max(1);
     let width = (range.1 - range.0) / bins as f64;
     let mut counts = vec![0.0f64; bins];
@@ -43,198 +445,231 @@ pub fn histogram_svg(
     }
     let total: f64 = counts.iter().sum::<f64>().max(f64::MIN_POSITIVE);
     let percent: Vec<f64> = counts.iter().map(|c| 100.0 * c / total).collect();
-    let top = percent.iter().copied().fold(1.0, f64::max) * 1.1;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(48)
-            .build_cartesian_2d(range.0..range.1, 0.0..top)
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc("% of surface")
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .draw_series(percent.iter().enumerate().map(|(b, p)| {
-                let x0 = range.0 + b as f64 * width;
-                Rectangle::new(
-                    [(x0, 0.0), (x0 + width, *p)],
-                    RGBColor(70, 110, 190).filled(),
-                )
-            }))
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
+    let top = percent.iter().copied().fold(1.0, f64::max);
+    let frame = Frame::new(
+        title,
+        Horizontal::Values {
+            spec: AxisSpec::linear(x_title),
+            lo: range.0,
+            hi: range.1,
+        },
+        (AxisSpec::linear("% of surface"), 0.0, top),
+        Vec::new(),
+    );
+    let mut bars = Group::new().set("class", "bars");
+    for (b, p) in percent.iter().enumerate() {
+        let x0 = frame.x_px(range.0 + b as f64 * width);
+        let x1 = frame.x_px(range.0 + (b + 1) as f64 * width);
+        let y = frame.y_px(*p);
+        bars = bars.add(
+            Rectangle::new()
+                .set("class", "bar")
+                .set("x", px(x0))
+                .set("y", px(y))
+                .set("width", px(x1 - x0))
+                .set("height", px(frame.bottom - y))
+                .set("fill", rgb(BAR))
+                .set("stroke", "#ffffff")
+                .set("stroke-width", 0.5),
+        );
     }
-    Ok(svg)
+    frame.finish(frame.document().add(bars))
 }
 
-/// An axis label with three significant digits and no trailing zeros (a log axis's ticks are
-/// products like 0.30000000000000004).
-fn significant(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        return format!("{v}");
-    }
-    let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
-    let text = format!("{v:.decimals$}");
-    if text.contains('.') {
-        text.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        text
-    }
-}
-
-/// One named curve of (x, y) points.
-pub struct Series<'a> {
-    pub name: &'a str,
-    pub points: &'a [(f64, f64)],
-    pub color: RGBColor,
-}
-
-/// Line chart of several series; `log_y` for convergence histories.
-pub fn line_chart_svg(
-    title: &str,
-    x_label: &str,
-    y_label: &str,
-    series: &[Series],
-    log_y: bool,
-) -> Result<String, PlotError> {
-    let err = plot_err(title);
-    let pts = || {
+/// A line chart of several series, the legend below the axes. Points that the axes cannot show
+/// (non-finite, or not positive on a log axis) are left out.
+pub fn line_chart_svg(title: &str, x: AxisSpec, y: AxisSpec, series: &[Series]) -> String {
+    let shown = |p: &(f64, f64)| {
+        p.0.is_finite()
+            && p.1.is_finite()
+            && (x.scale == Scale::Linear || p.0 > 0.0)
+            && (y.scale == Scale::Linear || p.1 > 0.0)
+    };
+    let extent = |values: &mut dyn Iterator<Item = f64>| {
+        values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+    };
+    let points = || {
         series
             .iter()
-            .flat_map(|s| s.points.iter())
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .flat_map(|s| s.points.iter().filter(|p| shown(p)))
     };
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (x, y) in pts() {
-        if log_y && *y <= 0.0 {
-            continue;
+    let (x0, x1) = extent(&mut points().map(|p| p.0));
+    let (mut y0, mut y1) = extent(&mut points().map(|p| p.1));
+    if y.scale == Scale::Linear && y1 > y0 {
+        let pad = 0.05 * (y1 - y0);
+        (y0, y1) = (y0 - pad, y1 + pad);
+    }
+    // one legend entry per name (a band's two edges share theirs)
+    let mut legend: Vec<(String, Mark)> = Vec::new();
+    for s in series {
+        if !legend.iter().any(|(name, _)| name == s.name) {
+            legend.push((s.name.to_string(), Mark::Line(s.colour)));
         }
-        x0 = x0.min(*x);
-        x1 = x1.max(*x);
-        y0 = y0.min(*y);
-        y1 = y1.max(*y);
     }
-    if x0 > x1 {
-        (x0, x1, y0, y1) = (0.0, 1.0, 0.1, 1.0);
+    let frame = Frame::new(
+        title,
+        Horizontal::Values {
+            spec: x,
+            lo: x0,
+            hi: x1,
+        },
+        (y, y0, y1),
+        legend,
+    );
+    let mut curves = Group::new().set("class", "curves");
+    for s in series {
+        let points: Vec<String> = s
+            .points
+            .iter()
+            .filter(|p| shown(p))
+            .map(|p| format!("{},{}", px(frame.x_px(p.0)), px(frame.y_px(p.1))))
+            .collect();
+        curves = curves.add(
+            Polyline::new()
+                .set("class", "series")
+                .set("data-name", s.name)
+                .set("points", points.join(" "))
+                .set("fill", "none")
+                .set("stroke", rgb(s.colour))
+                .set("stroke-width", 2)
+                .set("stroke-linejoin", "round"),
+        );
     }
-    if x1 - x0 < 1e-12 {
-        x1 = x0 + 1.0;
-    }
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut builder = ChartBuilder::on(&root);
-        builder
-            .caption(title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(56);
-        macro_rules! draw {
-            ($chart:expr, $map:expr) => {{
-                let mut chart = $chart.map_err(|e| err(e.to_string()))?;
-                chart
-                    .configure_mesh()
-                    .x_desc(x_label)
-                    .y_desc(y_label)
-                    .y_label_formatter(&|v| significant(*v))
-                    .draw()
-                    .map_err(|e| err(e.to_string()))?;
-                for s in series {
-                    let points: Vec<(f64, f64)> = s.points.iter().copied().filter($map).collect();
-                    let color = s.color;
-                    chart
-                        .draw_series(LineSeries::new(points, color.stroke_width(2)))
-                        .map_err(|e| err(e.to_string()))?
-                        .label(s.name)
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
-                        });
-                }
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .draw()
-                    .map_err(|e| err(e.to_string()))?;
-            }};
-        }
-        if log_y {
-            let (lo, hi) = (y0 * 0.8, y1 * 1.25);
-            draw!(
-                builder.build_cartesian_2d(x0..x1, (lo..hi).log_scale()),
-                |p: &(f64, f64)| p.1 > 0.0
-            );
-        } else {
-            let pad = ((y1 - y0) * 0.05).max(1e-9);
-            draw!(
-                builder.build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad)),
-                |_: &(f64, f64)| true
-            );
-        }
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    Ok(svg)
+    frame.finish(frame.document().add(curves))
 }
 
-/// Box plots (median, quartiles, whiskers at 1.5 IQR) of one value per case, per group.
+/// Quartiles by linear interpolation between order statistics (numpy's default) of sorted
+/// values.
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let at = q * (sorted.len() - 1) as f64;
+    let (k, f) = (at.floor() as usize, at.fract());
+    match sorted.get(k + 1) {
+        Some(next) => sorted[k] + f * (next - sorted[k]),
+        None => sorted[k],
+    }
+}
+
+/// Box plots of one value per case, per group: the box from the first to the third quartile
+/// with the median, whiskers to the furthest values within 1.5 interquartile ranges of the box
+/// (Tukey); the values beyond as points, and every value as a point (spread sideways so that
+/// equal values stay visible) when a group has fewer than `SMALL_N`. `target`, when given, is a
+/// dashed line named in the legend; the value axis starts at 0 and reaches above it.
 pub fn box_plot_svg(
     title: &str,
-    y_label: &str,
+    y_title: &str,
     groups: &[(String, Vec<f64>)],
-) -> Result<String, PlotError> {
-    let err = plot_err(title);
-    let names: Vec<String> = groups.iter().map(|(n, _)| n.clone()).collect();
-    let top = groups
+    target: Option<&Target>,
+) -> String {
+    let finite: Vec<Vec<f64>> = groups
         .iter()
-        .flat_map(|(_, v)| v.iter().copied())
-        .filter(|v| v.is_finite())
+        .map(|(_, values)| {
+            let mut v: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+            v.sort_by(f64::total_cmp);
+            v
+        })
+        .collect();
+    let top = finite
+        .iter()
+        .flatten()
+        .copied()
+        .chain(target.map(|t| t.value))
         .fold(0.0f64, f64::max)
-        .max(1e-6)
-        * 1.15;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(56)
-            .build_cartesian_2d(names.as_slice().into_segmented(), 0.0f32..top as f32)
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .y_desc(y_label)
-            .x_label_formatter(&|v| match v {
-                SegmentValue::Exact(n) | SegmentValue::CenterOf(n) => n.to_string(),
-                SegmentValue::Last => String::new(),
-            })
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .draw_series(
-                groups
-                    .iter()
-                    .zip(&names)
-                    .filter(|((_, v), _)| !v.is_empty())
-                    .map(|((_, v), name)| {
-                        let q = Quartiles::new(v);
-                        Boxplot::new_vertical(SegmentValue::CenterOf(name), &q)
-                    }),
-            )
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
+        * 1.1;
+    let names: Vec<String> = groups.iter().map(|(n, _)| n.clone()).collect();
+    let any_points = finite.iter().any(|v| !v.is_empty() && v.len() < SMALL_N);
+    let mut legend = Vec::new();
+    if any_points {
+        legend.push(("one case".to_string(), Mark::Dot(POINT)));
     }
-    Ok(svg)
+    if let Some(t) = target {
+        legend.push((t.label.clone(), Mark::Dashed(TARGET)));
+    }
+    let frame = Frame::new(
+        title,
+        Horizontal::Groups(&names),
+        (AxisSpec::linear(y_title), 0.0, top),
+        legend,
+    );
+    let mut boxes = Group::new().set("class", "boxes");
+    for (k, values) in finite.iter().enumerate() {
+        if values.is_empty() {
+            continue;
+        }
+        let (centre, slot) = frame.slot(k);
+        let half = (0.2 * slot).min(30.0);
+        let (q1, median, q3) = (
+            quantile(values, 0.25),
+            quantile(values, 0.5),
+            quantile(values, 0.75),
+        );
+        let fence = 1.5 * (q3 - q1);
+        let low = values
+            .iter()
+            .copied()
+            .find(|v| *v >= q1 - fence)
+            .unwrap_or(q1);
+        let high = values
+            .iter()
+            .rev()
+            .copied()
+            .find(|v| *v <= q3 + fence)
+            .unwrap_or(q3);
+        let y = |v: f64| px(frame.y_px(v));
+        let mut group = Group::new()
+            .set("class", "box")
+            .set("data-group", names[k].as_str())
+            .add(line((centre, y(low)), (centre, y(q1)), INK, 1.0))
+            .add(line((centre, y(q3)), (centre, y(high)), INK, 1.0))
+            .add(line(
+                (centre - half / 2.0, y(low)),
+                (centre + half / 2.0, y(low)),
+                INK,
+                1.0,
+            ))
+            .add(line(
+                (centre - half / 2.0, y(high)),
+                (centre + half / 2.0, y(high)),
+                INK,
+                1.0,
+            ))
+            .add(
+                Rectangle::new()
+                    .set("x", px(centre - half))
+                    .set("y", y(q3))
+                    .set("width", px(2.0 * half))
+                    .set("height", px(y(q1) - y(q3)))
+                    .set("fill", "#dfe7f5")
+                    .set("stroke", INK),
+            )
+            .add(line(
+                (centre - half, y(median)),
+                (centre + half, y(median)),
+                INK,
+                2.0,
+            ));
+        let every = values.len() < SMALL_N;
+        // spread sideways by the golden ratio's fractions: deterministic, and no two alike
+        for (i, v) in values.iter().enumerate() {
+            if every || *v < low || *v > high {
+                let spread = ((i as f64 * 0.618_034).fract() - 0.5) * 1.6 * half;
+                group = group.add(dot(centre + spread, frame.y_px(*v), POINT));
+            }
+        }
+        boxes = boxes.add(group);
+    }
+    let mut document = frame.document().add(boxes);
+    if let Some(t) = target {
+        let at = px(frame.y_px(t.value));
+        document = document.add(
+            line((frame.left, at), (frame.right, at), &rgb(TARGET), 1.5)
+                .set("class", "target")
+                .set("data-value", t.value)
+                .set("stroke-dasharray", "5 3"),
+        );
+    }
+    frame.finish(document)
 }
 
 #[cfg(test)]
@@ -245,54 +680,142 @@ mod tests {
         svg.matches(needle).count()
     }
 
+    /// The `data-value`s and texts of the tick labels of the axis group `class`.
+    fn tick_labels(svg: &str, class: &str) -> Vec<String> {
+        let start = svg.find(&format!("class=\"{class}\"")).unwrap();
+        let end = svg[start..].find("</g>").unwrap() + start;
+        svg[start..end]
+            .split("class=\"tick-label\"")
+            .skip(1)
+            .map(|s| {
+                let from = s.find('>').unwrap() + 1;
+                let to = s.find("</text>").unwrap();
+                s[from..to].trim().to_string()
+            })
+            .collect()
+    }
+
     #[test]
-    fn histogram_draws_one_bar_per_non_empty_bin() {
-        // 3 values in bin 0, 1 in bin 2 of 4 bins: two filled bars of 75 % and 25 %
-        let svg =
-            histogram_svg("h", "mm", &[-0.45, -0.4, -0.3, 0.1], None, (-0.5, 0.5), 4).unwrap();
+    fn histogram_draws_one_bar_per_bin() {
+        // 3 values in bin 0, 1 in bin 2 of 4 bins: bars of 75 %, 0, 25 % and 0
+        let svg = histogram_svg("h", "mm", &[-0.45, -0.4, -0.3, 0.1], None, (-0.5, 0.5), 4);
         assert!(svg.starts_with("<svg"));
-        let bars = count(&svg, "fill=\"#466EBE\"");
-        assert_eq!(bars, 4, "{svg}"); // zero-height bars are drawn too
-        assert!(
-            svg.contains("mm") && svg.contains("% of surface"),
-            "axis labels"
+        assert_eq!(count(&svg, "class=\"bar\""), 4, "{svg}");
+        assert!(svg.contains("mm") && svg.contains("% of surface"));
+        assert_eq!(
+            tick_labels(&svg, "x-axis"),
+            [
+                "-0.5", "-0.4", "-0.3", "-0.2", "-0.1", "0.0", "0.1", "0.2", "0.3", "0.4", "0.5"
+            ]
         );
     }
 
     #[test]
-    fn axis_labels_keep_three_significant_digits() {
-        assert_eq!(significant(0.30000000000000004), "0.3");
-        assert_eq!(significant(0.000123456), "0.000123");
-        assert_eq!(significant(12.5), "12.5");
-        assert_eq!(significant(1500.0), "1500");
-        assert_eq!(significant(-0.25), "-0.25");
+    fn a_frequency_axis_is_logarithmic_and_reads_in_hz() {
+        let pts: Vec<(f64, f64)> = [250.0, 500.0, 1000.0, 2000.0, 7943.0]
+            .iter()
+            .map(|f| (*f, 100.0 / (1.0 + f / 1000.0)))
+            .collect();
+        let svg = line_chart_svg(
+            "tf",
+            AxisSpec::hertz("frequency (Hz)"),
+            AxisSpec::log("|H_V|"),
+            &[Series {
+                name: "model",
+                points: &pts,
+                colour: [200, 30, 30],
+            }],
+        );
+        let x_axis = &svg[svg.find("class=\"x-axis\"").unwrap()..];
+        let x_axis = &x_axis[..x_axis.find('>').unwrap()];
+        assert!(
+            x_axis.contains("data-numbers=\"hertz\"") && x_axis.contains("data-scale=\"log\""),
+            "{x_axis}"
+        );
+        assert_eq!(
+            tick_labels(&svg, "x-axis"),
+            ["250", "500", "1k", "2k", "4k", "8k"]
+        );
+        assert!(!svg.contains("log10"));
     }
 
     #[test]
-    fn line_chart_and_box_plot_render() {
-        let pts = [(1.0, 1.0), (2.0, 0.1), (3.0, 0.01)];
+    fn every_legend_entry_lies_below_the_plot_area() {
+        let a = [(1.0, 1.0), (2.0, 0.1), (3.0, 0.01)];
         let svg = line_chart_svg(
             "c",
-            "iteration",
-            "max update (mm)",
-            &[Series {
-                name: "update",
-                points: &pts,
-                color: RGBColor(200, 30, 30),
-            }],
-            true,
-        )
-        .unwrap();
-        assert!(svg.contains("polyline") || svg.contains("<path"), "{svg}");
-        let svg = box_plot_svg(
-            "b",
-            "MASD (mm)",
-            &[("malleus".into(), vec![0.1, 0.12, 0.2, 0.15])],
-        )
-        .unwrap();
-        assert!(
-            svg.contains("\nmalleus\n") && !svg.contains("\"malleus\""),
-            "the group name without quotes: {svg}"
+            AxisSpec::counts("iteration"),
+            AxisSpec::log("mm"),
+            &[
+                Series {
+                    name: "band",
+                    points: &a,
+                    colour: [150, 150, 150],
+                },
+                Series {
+                    name: "band",
+                    points: &a,
+                    colour: [150, 150, 150],
+                },
+            ],
         );
+        assert_eq!(tick_labels(&svg, "x-axis"), ["1", "2", "3"]);
+        let legend = &svg[svg.find("class=\"legend\"").unwrap()..];
+        assert_eq!(count(legend, "band"), 1, "one entry per name");
+        // the legend's texts sit below the x axis line (y of the plot area's bottom)
+        let frame_bottom: f64 = {
+            let axis = &svg[svg.find("class=\"x-axis\"").unwrap()..];
+            let y1 = &axis[axis.find("y1=\"").unwrap() + 4..];
+            y1[..y1.find('"').unwrap()].parse().unwrap()
+        };
+        let text_y: f64 = {
+            let t = &legend[legend.find("<text").unwrap()..];
+            let y = &t[t.find(" y=\"").unwrap() + 4..];
+            y[..y.find('"').unwrap()].parse().unwrap()
+        };
+        assert!(
+            text_y > frame_bottom + 2.0 * FONT_PX,
+            "{text_y} vs {frame_bottom}"
+        );
+    }
+
+    #[test]
+    fn small_box_plots_show_every_value_and_the_target() {
+        let groups = vec![
+            ("malleus".to_string(), vec![0.02, 0.03, 0.025]),
+            ("incus".to_string(), vec![0.01, 0.02, 0.015]),
+        ];
+        let target = Target {
+            value: 0.2,
+            label: "target ≤ 0.2 mm".into(),
+        };
+        let svg = box_plot_svg("MASD", "MASD (mm)", &groups, Some(&target));
+        assert_eq!(
+            count(&svg, "class=\"point\""),
+            6 + 1,
+            "six cases and the legend's dot"
+        );
+        assert_eq!(count(&svg, "class=\"target\""), 1);
+        assert!(svg.contains("target ≤ 0.2 mm"));
+        // the value axis reaches above the target
+        let labels = tick_labels(&svg, "y-axis");
+        let top: f64 = labels.last().unwrap().parse().unwrap();
+        assert!(top > 0.2, "{labels:?}");
+        assert!(
+            svg.contains(">\nmalleus\n<") || svg.contains(">malleus<"),
+            "{svg}"
+        );
+    }
+
+    #[test]
+    fn tukey_whiskers_end_at_data_and_outliers_are_points() {
+        // 12 values: 11 between 1 and 2, one outlier at 10; no whisker reaches beyond the data
+        let mut values: Vec<f64> = (0..11).map(|k| 1.0 + k as f64 / 10.0).collect();
+        values.push(10.0);
+        let svg = box_plot_svg("b", "mm", &[("g".into(), values)], None);
+        assert_eq!(count(&svg, "class=\"point\""), 1, "only the outlier");
+        let sorted: Vec<f64> = (0..11).map(|k| 1.0 + k as f64 / 10.0).collect();
+        assert_eq!(quantile(&sorted, 0.5), 1.5);
+        assert!((quantile(&sorted, 0.25) - 1.25).abs() < 1e-12);
     }
 }

@@ -7,7 +7,6 @@ use std::collections::BTreeMap;
 use super::{Accuracy, CaseReportInput, mm};
 use crate::atlas::Part;
 use crate::meshdev::ColourRange;
-use crate::report::error::ReportError;
 use crate::report::html::{Figure, FigureContent, Page};
 use crate::report::metrics::{HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics, anatomical_order};
 use crate::report::plot::histogram_svg;
@@ -94,7 +93,7 @@ pub(super) fn metrics_table(
     );
 }
 
-pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(), ReportError> {
+pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) {
     page.heading("Signed distances of the registered surfaces");
     let deviation = match &input.accuracy {
         Accuracy::NoSegmentation => {
@@ -102,7 +101,7 @@ pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(),
                 "The case has no manual segmentation: no distances.",
                 Some("note"),
             );
-            return Ok(());
+            return;
         }
         Accuracy::Resumed { .. } => {
             page.paragraph(
@@ -110,7 +109,7 @@ pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(),
                  memory; rerun from score to plot them.",
                 Some("note"),
             );
-            return Ok(());
+            return;
         }
         Accuracy::Scored { deviation, .. } => deviation,
     };
@@ -141,7 +140,7 @@ pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(),
             Some(&weights),
             (range.min_mm, range.max_mm),
             HISTOGRAM_BINS,
-        )?;
+        );
         figures.push(Figure {
             caption: format!(
                 "{name}: area-weighted signed distance of the registered surface's vertices to \
@@ -152,5 +151,4 @@ pub(super) fn histograms(page: &mut Page, input: &CaseReportInput) -> Result<(),
         });
     }
     page.figures(&figures);
-    Ok(())
 }

@@ -2,22 +2,18 @@
 //! its value and band) and the charts of the transfer function (magnitude against the Goode
 //! band and the atlas, phase) and, when computed, of the static-pressure curve.
 
-use super::super::error::ReportError;
 use super::super::html::{Figure, FigureContent, Page};
 use super::super::mechanics_plots::validation_plots;
 use crate::mechanics::Validation;
 
-pub(super) fn mechanics_section(
-    page: &mut Page,
-    v: Option<&Validation>,
-) -> Result<(), ReportError> {
+pub(super) fn mechanics_section(page: &mut Page, v: Option<&Validation>) {
     page.heading("Mechanics of the package against the atlas");
     let Some(v) = v else {
         page.paragraph(
             "Not validated (`[validate] enabled = false` in the configuration).",
             Some("note"),
         );
-        return Ok(());
+        return;
     };
     let failed = v.verdict.failures().count();
     if v.verdict.passed {
@@ -61,7 +57,7 @@ pub(super) fn mechanics_section(
         "tf_phase.svg" => "phase of H_V: the package and the atlas",
         _ => "umbo displacement under static pressure: the package and the atlas",
     };
-    let charts = validation_plots(v)?;
+    let charts = validation_plots(v);
     let figures: Vec<Figure> = charts
         .into_iter()
         .map(|(name, svg)| Figure {
@@ -70,5 +66,4 @@ pub(super) fn mechanics_section(
         })
         .collect();
     page.figures(&figures);
-    Ok(())
 }

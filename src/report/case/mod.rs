@@ -10,7 +10,6 @@
 use std::collections::BTreeMap;
 
 use nalgebra::Point3;
-use plotters::style::RGBColor;
 
 mod accuracy;
 mod mechanics;
@@ -23,7 +22,8 @@ use summary::{summary, verdict};
 use super::error::ReportError;
 use super::html::{Figure, FigureContent, Page};
 use super::metrics::{DeformSummary, Scores};
-use super::plot::{Series, line_chart_svg};
+use super::overlay::OUTSIDE_IMAGE;
+use super::plot::{AxisSpec, Series, line_chart_svg};
 use super::slices::{
     OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR, overlay_figures,
 };
@@ -146,6 +146,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     if reference.is_some() {
         legend.push(("manual segmentation", SEGMENTATION_COLOUR));
     }
+    legend.push(("beyond the image (hatched)", OUTSIDE_IMAGE[0]));
     page.legend(&legend);
     match &input.accuracy {
         Accuracy::NoSegmentation => page.paragraph(
@@ -168,13 +169,13 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
         page.figures(&figures);
     }
 
-    histograms(&mut page, input)?;
-    convergence(&mut page, &deform)?;
-    mechanics_section(&mut page, input.mechanics)?;
+    histograms(&mut page, input);
+    convergence(&mut page, &deform);
+    mechanics_section(&mut page, input.mechanics);
     Ok(page.finish())
 }
 
-fn convergence(page: &mut Page, deform: &DeformSummary) -> Result<(), ReportError> {
+fn convergence(page: &mut Page, deform: &DeformSummary) {
     page.heading("Convergence of the deformable registration");
     let offset: Vec<(f64, f64)> = deform
         .history
@@ -188,22 +189,21 @@ fn convergence(page: &mut Page, deform: &DeformSummary) -> Result<(), ReportErro
         .collect();
     let svg = line_chart_svg(
         "deformable registration",
-        "iteration",
-        "mm",
+        AxisSpec::counts("iteration"),
+        AxisSpec::log("mm"),
         &[
             Series {
                 name: "mean border offset",
                 points: &offset,
-                color: RGBColor(200, 30, 30),
+                colour: [200, 30, 30],
             },
             Series {
                 name: "99th percentile nodal update",
                 points: &update,
-                color: RGBColor(30, 90, 200),
+                colour: [30, 90, 200],
             },
         ],
-        true,
-    )?;
+    );
     page.figures(&[Figure {
         caption: format!(
             "mean distance from the atlas surface to the image border found by the probes, and \
@@ -213,7 +213,6 @@ fn convergence(page: &mut Page, deform: &DeformSummary) -> Result<(), ReportErro
         ),
         content: FigureContent::Svg(svg),
     }]);
-    Ok(())
 }
 
 #[cfg(test)]
