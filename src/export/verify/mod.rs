@@ -1,8 +1,9 @@
 //! `verify`: checks that a package is whole and consistent — every file re-hashed against the
 //! manifest (none missing, none unlisted), the manifest's fields (format, version, units,
-//! configuration hash, mesh counts), mesh.msh and mesh.vtu read back and equal, no inverted
-//! or degenerate tetrahedron, atlas.json valid over mesh.vtu, and the SOFA scene's components
-//! and vectors against the mesh (`verify_scene`). Every fault is collected, not just the first.
+//! configuration hash, mesh counts), mesh.msh and mesh.vtu read back and equal, no inverted,
+//! flattened or collapsed tetrahedron (`elements`), atlas.json valid over mesh.vtu, and the
+//! SOFA scene's components and vectors against the mesh (`verify_scene`). Every fault is
+//! collected, not just the first.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -10,20 +11,24 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 mod bending;
+mod elements;
 mod faults;
 mod scene;
 mod xml;
 
 use super::ExportError;
 use super::digest::file_digests;
-use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION};
+use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION, atlas_sha256};
 use super::scene::{SCENE, SCENE_MESH};
 use crate::atlas::Atlas;
-use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, read_atlas};
+use crate::atlas::format::{
+    MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, default_atlas, read_atlas,
+};
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
-use crate::mesh::tet::signed_volume;
+pub use elements::{ElementQuality, MIN_SHAPE_QUALITY, MIN_VOLUME_RATIO};
+use elements::{Reference, check_orientation, check_quality};
 pub use faults::Fault;
 use faults::Faults;
 use scene::check_scene;
@@ -49,6 +54,8 @@ pub struct VerifyReport {
     pub atlas: Option<Atlas>,
     /// Files whose hash was compared.
     pub files_checked: usize,
+    /// The worst tetrahedra of mesh.msh, when it could be read.
+    pub elements: Option<ElementQuality>,
     pub faults: Vec<Fault>,
 }
 
@@ -63,6 +70,7 @@ impl VerifyReport {
             "package": self.package,
             "passed": self.passed(),
             "files_checked": self.files_checked,
+            "elements": self.elements,
             "mesh": self.manifest.as_ref().map(|m| m.mesh),
             "inputs_sha256": self.manifest.as_ref().map(|m| &m.inputs_sha256),
             "config_sha256": self.manifest.as_ref().map(|m| &m.config_sha256),
@@ -82,6 +90,19 @@ impl VerifyReport {
                 m.map_or(0, |m| m.tetrahedra),
                 m.map_or(0, |m| m.triangles)
             ));
+            if let Some(e) = &self.elements {
+                s.push_str(&format!(
+                    "  least shape quality {:.3} (bound {MIN_SHAPE_QUALITY}); ",
+                    e.min_shape_quality
+                ));
+                s.push_str(&e.min_volume_ratio.map_or_else(
+                    || {
+                        "volume ratios to the atlas not checked: the manifest's atlas is not the                          embedded one (give it with --atlas)\n"
+                            .to_string()
+                    },
+                    |r| format!("least volume ratio to the atlas {r:.3} (bound {MIN_VOLUME_RATIO})\n"),
+                ));
+            }
         } else {
             s.push_str(&format!("{} fault(s)\n", self.faults.len()));
             for f in &self.faults {
@@ -92,9 +113,19 @@ impl VerifyReport {
     }
 }
 
-/// Verifies the package at `dir`. `Err` only when `dir` is not a readable folder; every
-/// problem inside it is a fault of the report.
+/// Verifies the package at `dir`, comparing its tetrahedra's volumes with the embedded atlas's
+/// when the package was registered from it. `Err` only when `dir` is not a readable folder;
+/// every problem inside it is a fault of the report.
 pub fn verify_package(dir: &Path) -> Result<VerifyReport, ExportError> {
+    verify_package_against(dir, None)
+}
+
+/// [`verify_package`], with the atlas the package was registered from (either side: it is
+/// mirrored to the package's). An atlas that is not the one the manifest names is a fault.
+pub fn verify_package_against(
+    dir: &Path,
+    atlas: Option<&Atlas>,
+) -> Result<VerifyReport, ExportError> {
     if !dir.is_dir() {
         return Err(ExportError::NotAPackage {
             path: dir.to_path_buf(),
@@ -109,12 +140,18 @@ pub fn verify_package(dir: &Path) -> Result<VerifyReport, ExportError> {
         manifest: manifest.clone(),
         atlas: None,
         files_checked: 0,
+        elements: None,
         faults: Vec::new(),
     };
     if let Some(m) = &manifest {
         report.files_checked = check_files(m, &actual, &mut faults);
         check_fields(m, &mut faults);
-        report.atlas = check_content(dir, m, &mut faults);
+        let source = source_atlas(m, atlas, &mut faults);
+        let reference = source.as_ref().map(|atlas| Reference {
+            atlas,
+            scale: m.atlas_to_patient.scale,
+        });
+        (report.atlas, report.elements) = check_content(dir, m, reference.as_ref(), &mut faults);
     }
     report.faults = faults.0;
     Ok(report)
@@ -239,30 +276,43 @@ fn check_counts(mesh: &VolumeMesh, want: MeshCounts, file: &str, faults: &mut Fa
     }
 }
 
-/// Tetrahedra with a non-positive volume.
-fn check_orientation(mesh: &VolumeMesh, file: &str, faults: &mut Faults) {
-    let bad: Vec<(usize, f64)> = (0..mesh.tets.tets.len())
-        .filter_map(|t| {
-            let [a, b, c, d] = mesh.tets.corners(t);
-            let v = signed_volume(&a, &b, &c, &d);
-            (v.is_nan() || v <= 1e-12).then_some((t, v))
-        })
-        .collect();
-    if let Some(&(first, v)) = bad.first() {
+/// The atlas the package was registered from, mirrored to its side: `given`, which must be
+/// the one the manifest names (a fault otherwise), or the embedded atlas when it is that one.
+fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Option<Atlas> {
+    let atlas = match given {
+        Some(a) => a.clone(),
+        None => default_atlas().ok()?,
+    };
+    let atlas = if atlas.side == m.side {
+        atlas
+    } else {
+        atlas.mirrored()
+    };
+    let digest = atlas_sha256(&atlas).ok()?;
+    if digest == m.atlas.sha256 {
+        return Some(atlas);
+    }
+    if given.is_some() {
         faults.add(
-            "orientation",
-            file,
+            "quality",
+            MANIFEST,
             format!(
-                "{} inverted or degenerate tetrahedra (volume <= 0), first: tetrahedron {first} \
-                 ({v:.3e} mm^3)",
-                bad.len()
+                "the package was registered from atlas '{}' (SHA-256 {}), the atlas given is                  '{}' (SHA-256 {digest})",
+                m.atlas.name, m.atlas.sha256, atlas.name
             ),
         );
     }
+    None
 }
 
-/// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read.
-fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas> {
+/// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read and
+/// the worst tetrahedra of the scene's mesh.
+fn check_content(
+    dir: &Path,
+    m: &Manifest,
+    reference: Option<&Reference>,
+    faults: &mut Faults,
+) -> (Option<Atlas>, Option<ElementQuality>) {
     let msh = read_msh(&dir.join(SCENE_MESH))
         .map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
         .ok();
@@ -276,6 +326,9 @@ fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas>
             check_orientation(mesh, file, faults);
         }
     }
+    let elements = msh
+        .as_ref()
+        .and_then(|mesh| check_quality(mesh, reference, SCENE_MESH, faults));
     if let (Some(a), Some(b)) = (&msh, &vtu)
         && a != b
     {
@@ -292,5 +345,5 @@ fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas>
         Err(e) => faults.add("scene", SCENE, format!("cannot be read: {e}")),
         Ok(text) => check_scene(&text, msh.as_ref(), atlas.as_ref(), &m.files, faults),
     }
-    atlas
+    (atlas, elements)
 }
