@@ -597,6 +597,54 @@ fn norm3(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
+/// The defects: `verify` accepted a package file that is a symbolic link out of the
+/// package and an extra FIFO, and read a huge mesh.msh whole (twice). Now each link or special
+/// file is a fault naming the entry (and never opened: the FIFO would block), and a mesh.msh
+/// larger than the manifest's counts allow is not read.
+#[test]
+fn verify_refuses_links_special_files_and_oversized_meshes() {
+    let package = base_run().join("package");
+    let work = tempfile::tempdir().unwrap();
+    let dir = work.path().join("odd");
+    copy_tree(&package, &dir);
+    let outside = work.path().join("outside.json");
+    std::fs::copy(dir.join("landmarks.json"), &outside).unwrap();
+    std::fs::remove_file(dir.join("landmarks.json")).unwrap();
+    std::os::unix::fs::symlink(&outside, dir.join("landmarks.json")).unwrap();
+    let fifo = dir.join("surfaces/pipe");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let mut msh = std::fs::read(dir.join("mesh.msh")).unwrap();
+    msh.extend(b"$Comments\n");
+    msh.extend(std::iter::repeat_n(b'x', 5 << 20));
+    msh.extend(b"\n$EndComments\n");
+    std::fs::write(dir.join("mesh.msh"), &msh).unwrap();
+
+    let (code, report) = verify(&dir);
+    assert_eq!(code, 1, "{report}");
+    let f = faults(&report);
+    for want in [
+        ("special", "landmarks.json"),
+        ("missing", "landmarks.json"),
+        ("special", "surfaces/pipe"),
+        ("hash", "mesh.msh"),
+        ("mesh", "mesh.msh"),
+    ] {
+        assert!(
+            f.contains(&(want.0.into(), want.1.into())),
+            "{want:?} in {f:?}"
+        );
+    }
+    let text = report["faults"].to_string();
+    let link = format!("a symbolic link to {}", outside.display());
+    for needle in [link.as_str(), "a FIFO", "not read"] {
+        assert!(text.contains(needle), "{needle} in {text}");
+    }
+}
+
 /// `verify`'s worst tetrahedra against meshio + numpy's reading of the same package.
 fn assert_elements_as_numpy(package: &Path, report: &Value) {
     let atlas_mesh = common::root().join("assets/atlas/mesh.vtu");

@@ -17,13 +17,14 @@ mod scene;
 mod xml;
 
 use super::ExportError;
-use super::digest::file_digests;
+use super::digest::package_listing;
 use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION, atlas_sha256};
 use super::scene::{SCENE, SCENE_MESH};
 use crate::atlas::Atlas;
 use crate::atlas::format::{
     MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, default_atlas, read_atlas,
 };
+use crate::io_util::read_text;
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
@@ -97,10 +98,15 @@ impl VerifyReport {
                 ));
                 s.push_str(&e.min_volume_ratio.map_or_else(
                     || {
-                        "volume ratios to the atlas not checked: the manifest's atlas is not the                          embedded one (give it with --atlas)\n"
+                        "volume ratios to the atlas not checked: the manifest's atlas is not the \
+                         embedded one (give it with --atlas)\n"
                             .to_string()
                     },
-                    |r| format!("least volume ratio to the atlas {r:.3} (bound {MIN_VOLUME_RATIO})\n"),
+                    |r| {
+                        format!(
+                            "least volume ratio to the atlas {r:.3} (bound {MIN_VOLUME_RATIO})\n"
+                        )
+                    },
                 ));
             }
         } else {
@@ -132,9 +138,25 @@ pub fn verify_package_against(
             manifest: MANIFEST,
         });
     }
-    let actual = file_digests(dir)?;
+    let listing = package_listing(dir)?;
+    let actual = listing.files;
     let mut faults = Faults::default();
-    let manifest = read_manifest(dir, &mut faults);
+    for (name, kind) in &listing.others {
+        let target = std::fs::read_link(dir.join(name))
+            .map(|t| format!(" to {}", t.display()))
+            .unwrap_or_default();
+        faults.add(
+            "special",
+            name,
+            format!("a {kind}{target}, not a regular file: a package holds only files and folders"),
+        );
+    }
+    let manifest = if actual.contains_key(MANIFEST) {
+        read_manifest(dir, &mut faults)
+    } else {
+        faults.add("manifest", MANIFEST, "absent, or not a regular file");
+        None
+    };
     let mut report = VerifyReport {
         package: dir.to_path_buf(),
         manifest: manifest.clone(),
@@ -151,14 +173,15 @@ pub fn verify_package_against(
             atlas,
             scale: m.atlas_to_patient.scale,
         });
-        (report.atlas, report.elements) = check_content(dir, m, reference.as_ref(), &mut faults);
+        (report.atlas, report.elements) =
+            check_content(dir, m, &actual, reference.as_ref(), &mut faults);
     }
     report.faults = faults.0;
     Ok(report)
 }
 
 fn read_manifest(dir: &Path, faults: &mut Faults) -> Option<Manifest> {
-    let text = match std::fs::read_to_string(dir.join(MANIFEST)) {
+    let text = match read_text(&dir.join(MANIFEST)) {
         Ok(t) => t,
         Err(e) => {
             faults.add("manifest", MANIFEST, format!("cannot be read: {e}"));
@@ -187,7 +210,7 @@ fn read_manifest(dir: &Path, faults: &mut Faults) -> Option<Manifest> {
 }
 
 /// Re-hashes the files; returns how many listed files were compared.
-fn check_files(m: &Manifest, actual: &BTreeMap<String, String>, faults: &mut Faults) -> usize {
+fn check_files(m: &Manifest, actual: &Files, faults: &mut Faults) -> usize {
     let mut checked = 0;
     for (name, want) in &m.files {
         match actual.get(name) {
@@ -297,7 +320,8 @@ fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Opt
             "quality",
             MANIFEST,
             format!(
-                "the package was registered from atlas '{}' (SHA-256 {}), the atlas given is                  '{}' (SHA-256 {digest})",
+                "the package was registered from atlas '{}' (SHA-256 {}), the atlas given is \
+                 '{}' (SHA-256 {digest})",
                 m.atlas.name, m.atlas.sha256, atlas.name
             ),
         );
@@ -305,21 +329,66 @@ fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Opt
     None
 }
 
+/// Bytes a file read whole may have per node and element the manifest counts, and besides.
+const BYTES_PER_ITEM: u64 = 256;
+const BYTES_BESIDES: u64 = 1 << 20;
+
+/// Whether the package file `name` may be read whole: a regular file (links and special
+/// files are faults of their own and never opened) no larger than its manifest's counts
+/// allow, so that a huge or endless file is refused before it is read.
+fn readable(dir: &Path, name: &str, m: &Manifest, files: &Files, faults: &mut Faults) -> bool {
+    if !files.contains_key(name) {
+        return false;
+    }
+    let counts = (m.mesh.nodes + m.mesh.tetrahedra + m.mesh.triangles) as u64;
+    let limit = counts
+        .saturating_mul(BYTES_PER_ITEM)
+        .saturating_add(BYTES_BESIDES);
+    match std::fs::symlink_metadata(dir.join(name)) {
+        Ok(meta) if meta.len() <= limit => true,
+        Ok(meta) => {
+            faults.add(
+                "mesh",
+                name,
+                format!(
+                    "{} bytes, more than the {limit} its manifest's counts allow ({} bytes per \
+                     node and element, and 1 MiB); not read",
+                    meta.len(),
+                    BYTES_PER_ITEM
+                ),
+            );
+            false
+        }
+        Err(_) => false,
+    }
+}
+
+/// The package's regular files with their SHA-256.
+type Files = BTreeMap<String, String>;
+
 /// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read and
 /// the worst tetrahedra of the scene's mesh.
 fn check_content(
     dir: &Path,
     m: &Manifest,
+    files: &Files,
     reference: Option<&Reference>,
     faults: &mut Faults,
 ) -> (Option<Atlas>, Option<ElementQuality>) {
-    let msh = read_msh(&dir.join(SCENE_MESH))
-        .map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
-        .ok();
-    let vtu = read_vtu(&dir.join(ATLAS_MESH))
-        .map(|(mesh, _)| mesh)
-        .map_err(|e| faults.add("mesh", ATLAS_MESH, e.to_string()))
-        .ok();
+    let msh = readable(dir, SCENE_MESH, m, files, faults)
+        .then(|| read_msh(&dir.join(SCENE_MESH)))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
+                .ok()
+        });
+    let vtu_ok = readable(dir, ATLAS_MESH, m, files, faults);
+    let vtu = vtu_ok
+        .then(|| read_vtu(&dir.join(ATLAS_MESH)))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("mesh", ATLAS_MESH, e.to_string()))
+                .ok()
+        })
+        .map(|(mesh, _)| mesh);
     for (mesh, file) in [(&msh, SCENE_MESH), (&vtu, ATLAS_MESH)] {
         if let Some(mesh) = mesh {
             check_counts(mesh, m.mesh, file, faults);
@@ -338,9 +407,15 @@ fn check_content(
             format!("differs from {ATLAS_MESH} (nodes, cells or region labels)"),
         );
     }
-    let atlas = read_atlas(dir)
-        .map_err(|e| faults.add("atlas", ATLAS_MANIFEST, e.to_string()))
-        .ok();
+    let atlas = (vtu_ok && readable(dir, ATLAS_MANIFEST, m, files, faults))
+        .then(|| read_atlas(dir))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("atlas", ATLAS_MANIFEST, e.to_string()))
+                .ok()
+        });
+    if !readable(dir, SCENE, m, files, faults) {
+        return (atlas, elements);
+    }
     match std::fs::read_to_string(dir.join(SCENE)) {
         Err(e) => faults.add("scene", SCENE, format!("cannot be read: {e}")),
         Ok(text) => check_scene(&text, msh.as_ref(), atlas.as_ref(), &m.files, faults),
