@@ -645,6 +645,33 @@ fn verify_refuses_links_special_files_and_oversized_meshes() {
     }
 }
 
+/// The defect: the scene claimed SOFA v23.06+, where DiagonalVelocityDampingForceField
+/// has no implicit terms (sofa-framework/sofa v23.06.00
+/// DiagonalVelocityDampingForceField.inl: `addDForce` only reads `kFactor`, `addBToMatrix` is
+/// empty; #3999 restored them for v23.12) and FixedConstraint no longer loads from v25.06. The
+/// claim in the scene's comment, the manifest, docs/package-format.md and the README is one.
+#[test]
+fn scene_manifest_and_docs_claim_the_same_sofa_versions() {
+    let package = base_run().join("package");
+    let claim = "v23.12 to v24.12";
+    let scene = std::fs::read_to_string(package.join("scene.scn")).unwrap();
+    let first = scene.lines().nth(1).unwrap();
+    assert_eq!(
+        first,
+        format!("<!-- otoatlas patient package: SOFA scene for {claim} (runSofa scene.scn) -->")
+    );
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(package.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["sofa_versions"], claim);
+    let docs = std::fs::read_to_string(common::root().join("docs/package-format.md")).unwrap();
+    assert!(docs.contains(&format!("| `scene.scn` | SOFA scene (SOFA {claim})")));
+    assert!(docs.contains(&format!("`{claim}`")));
+    assert!(docs.contains(&format!("**Versions: SOFA {claim}.**")));
+    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
+    assert!(readme.contains(&format!("SOFA {claim}, units mm-g-s")));
+    assert!(!scene.contains("v23.06") && !docs.contains("v23.06 and later"));
+}
+
 /// `verify`'s worst tetrahedra against meshio + numpy's reading of the same package.
 fn assert_elements_as_numpy(package: &Path, report: &Value) {
     let atlas_mesh = common::root().join("assets/atlas/mesh.vtu");

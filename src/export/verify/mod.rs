@@ -20,6 +20,7 @@ use super::ExportError;
 use super::digest::package_listing;
 use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION, atlas_sha256};
 use super::scene::{SCENE, SCENE_MESH};
+use super::sofa::SOFA_VERSIONS;
 use crate::atlas::Atlas;
 use crate::atlas::format::{
     MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, default_atlas, read_atlas,
@@ -242,6 +243,16 @@ fn check_files(m: &Manifest, actual: &Files, faults: &mut Faults) -> usize {
 }
 
 fn check_fields(m: &Manifest, faults: &mut Faults) {
+    if m.sofa_versions != SOFA_VERSIONS {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            format!(
+                "sofa_versions '{}', expected '{SOFA_VERSIONS}'",
+                m.sofa_versions
+            ),
+        );
+    }
     if m.units != Units::ours() {
         faults.add(
             "manifest",
