@@ -1,7 +1,8 @@
 //! The patient package end to end, running the binary on `sample_cases/case-001` (a phantom
 //! with a fake patient identity in its DICOM): `verify` accepts a fresh package and names the
 //! fault of a changed byte, a deleted file, an unlisted file and an inverted element (exit 1)
-//! and a missing folder (exit 2); two runs give byte-identical packages; the SOFA scene uses
+//! and a missing folder (exit 2), and bounds each element's shape quality and volume ratio to
+//! the atlas (meshio + numpy give the same worst elements; a flattened one is named); two runs give byte-identical packages; the SOFA scene uses
 //! only components docs/package-format.md documents ("The SOFA scene") with every vector as
 //! long as the mesh it loads and every value equal to the atlas's material; meshio reads the
 //! Gmsh file with the right cells and physical tags; no patient-identifying field appears in
@@ -594,6 +595,211 @@ fn check_bending(
 
 fn norm3(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// The issue's defects: `verify` accepted a package file that is a symbolic link out of the
+/// package and an extra FIFO, and read a huge mesh.msh whole (twice). Now each link or special
+/// file is a fault naming the entry (and never opened: the FIFO would block), and a mesh.msh
+/// larger than the manifest's counts allow is not read.
+#[test]
+fn verify_refuses_links_special_files_and_oversized_meshes() {
+    let package = base_run().join("package");
+    let work = tempfile::tempdir().unwrap();
+    let dir = work.path().join("odd");
+    copy_tree(&package, &dir);
+    let outside = work.path().join("outside.json");
+    std::fs::copy(dir.join("landmarks.json"), &outside).unwrap();
+    std::fs::remove_file(dir.join("landmarks.json")).unwrap();
+    std::os::unix::fs::symlink(&outside, dir.join("landmarks.json")).unwrap();
+    let fifo = dir.join("surfaces/pipe");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let mut msh = std::fs::read(dir.join("mesh.msh")).unwrap();
+    msh.extend(b"$Comments\n");
+    msh.extend(std::iter::repeat_n(b'x', 5 << 20));
+    msh.extend(b"\n$EndComments\n");
+    std::fs::write(dir.join("mesh.msh"), &msh).unwrap();
+
+    let (code, report) = verify(&dir);
+    assert_eq!(code, 1, "{report}");
+    let f = faults(&report);
+    for want in [
+        ("special", "landmarks.json"),
+        ("missing", "landmarks.json"),
+        ("special", "surfaces/pipe"),
+        ("hash", "mesh.msh"),
+        ("mesh", "mesh.msh"),
+    ] {
+        assert!(
+            f.contains(&(want.0.into(), want.1.into())),
+            "{want:?} in {f:?}"
+        );
+    }
+    let text = report["faults"].to_string();
+    let link = format!("a symbolic link to {}", outside.display());
+    for needle in [link.as_str(), "a FIFO", "not read"] {
+        assert!(text.contains(needle), "{needle} in {text}");
+    }
+}
+
+/// The issue's defect: the scene claimed SOFA v23.06+, where DiagonalVelocityDampingForceField
+/// has no implicit terms (sofa-framework/sofa v23.06.00
+/// DiagonalVelocityDampingForceField.inl: `addDForce` only reads `kFactor`, `addBToMatrix` is
+/// empty; #3999 restored them for v23.12) and FixedConstraint no longer loads from v25.06. The
+/// claim in the scene's comment, the manifest, docs/package-format.md and the README is one.
+#[test]
+fn scene_manifest_and_docs_claim_the_same_sofa_versions() {
+    let package = base_run().join("package");
+    let claim = "v23.12 to v24.12";
+    let scene = std::fs::read_to_string(package.join("scene.scn")).unwrap();
+    let first = scene.lines().nth(1).unwrap();
+    assert_eq!(
+        first,
+        format!("<!-- otoatlas patient package: SOFA scene for {claim} (runSofa scene.scn) -->")
+    );
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(package.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["sofa_versions"], claim);
+    let docs = std::fs::read_to_string(common::root().join("docs/package-format.md")).unwrap();
+    assert!(docs.contains(&format!("| `scene.scn` | SOFA scene (SOFA {claim})")));
+    assert!(docs.contains(&format!("`{claim}`")));
+    assert!(docs.contains(&format!("**Versions: SOFA {claim}.**")));
+    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
+    assert!(readme.contains(&format!("SOFA {claim}, units mm-g-s")));
+    assert!(!scene.contains("v23.06") && !docs.contains("v23.06 and later"));
+}
+
+/// `verify`'s worst tetrahedra against meshio + numpy's reading of the same package.
+fn assert_elements_as_numpy(package: &Path, report: &Value) {
+    let atlas_mesh = common::root().join("assets/atlas/mesh.vtu");
+    let args = [package, atlas_mesh.as_path()];
+    if let Some(out) = run_python("element_quality.py", &args, &["meshio", "numpy"]) {
+        let numpy: Value = serde_json::from_str(&out).unwrap();
+        let ours = &report["elements"];
+        for key in [
+            "min_shape_quality_tetrahedron",
+            "min_volume_ratio_tetrahedron",
+        ] {
+            assert_eq!(ours[key], numpy[key], "{key}: {ours} against {numpy}");
+        }
+        for key in ["min_shape_quality", "min_volume_ratio"] {
+            let (a, b) = (ours[key].as_f64().unwrap(), numpy[key].as_f64().unwrap());
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "{key}: {a} against {b}");
+        }
+    }
+}
+
+/// The issue's defect: a stapes tetrahedron flattened to 0.5 % of its height (as the
+/// registration once left two, at 1.4 % and 4.3 % of their atlas volume) passed `verify`. Now
+/// a fresh package passes the element bounds, with the worst elements meshio + numpy find, and
+/// the planted one fails, named with its region, its shape quality and the bound.
+#[test]
+fn verify_bounds_element_quality_and_names_a_flattened_tetrahedron() {
+    let package = base_run().join("package");
+    let (code, report) = verify(&package);
+    assert_eq!(code, 0, "{report}");
+    assert_elements_as_numpy(&package, &report);
+    let min_quality = report["elements"]["min_shape_quality"].as_f64().unwrap();
+    let min_ratio = report["elements"]["min_volume_ratio"].as_f64().unwrap();
+    assert!(min_quality >= 0.02 && min_ratio >= 0.05, "{report}");
+
+    // the first stapes tetrahedron whose fourth corner, moved 99.5 % of the way onto the plane of
+    // the other three, inverts no element
+    let text = std::fs::read_to_string(package.join("mesh.msh")).unwrap();
+    let (nodes, elements) = read_gmsh(&text);
+    let tets: Vec<&Vec<usize>> = elements.iter().filter(|e| e.0 == 4).map(|e| &e.2).collect();
+    let stapes = 7; // physical tag of the stapes ($PhysicalNames)
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let volume = |p: &[[f64; 3]], t: &[usize]| {
+        dot(
+            sub(p[t[1]], p[t[0]]),
+            cross(sub(p[t[2]], p[t[0]]), sub(p[t[3]], p[t[0]])),
+        ) / 6.0
+    };
+    let (flat, moved) = elements
+        .iter()
+        .filter(|e| e.0 == 4)
+        .enumerate()
+        .filter(|(_, e)| e.1 == stapes)
+        .find_map(|(k, e)| {
+            let t = &e.2;
+            let n = cross(sub(nodes[t[1]], nodes[t[0]]), sub(nodes[t[2]], nodes[t[0]]));
+            let h = dot(sub(nodes[t[3]], nodes[t[0]]), n) / dot(n, n);
+            let mut p = nodes.clone();
+            p[t[3]] = std::array::from_fn(|i| nodes[t[3]][i] - 0.995 * h * n[i]);
+            tets.iter()
+                .all(|t| volume(&p, t) > 1e-12)
+                .then_some((k, (t[3], p[t[3]])))
+        })
+        .expect("a stapes tetrahedron to flatten");
+    let work = tempfile::tempdir().unwrap();
+    let dir = work.path().join("flat");
+    copy_tree(&package, &dir);
+    let (node, [x, y, z]) = moved;
+    let nodes_at = text.find("$Nodes\n").unwrap();
+    let line_start = nodes_at + text[nodes_at..].find(&format!("\n{} ", node + 1)).unwrap() + 1;
+    let line_end = line_start + text[line_start..].find('\n').unwrap();
+    let text = format!(
+        "{}{} {x:?} {y:?} {z:?}{}",
+        &text[..line_start],
+        node + 1,
+        &text[line_end..]
+    );
+    std::fs::write(dir.join("mesh.msh"), &text).unwrap();
+    let mpath = dir.join("manifest.json");
+    let mut m: Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+    m["files"]["mesh.msh"] = sha256_hex(text.as_bytes()).into();
+    std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+
+    let (code, report) = verify(&dir);
+    assert_eq!(code, 1, "{report}");
+    assert_elements_as_numpy(&dir, &report);
+    let elements = &report["elements"];
+    assert_eq!(elements["min_shape_quality_tetrahedron"], flat, "{report}");
+    let quality = elements["min_shape_quality"].as_f64().unwrap();
+    assert!(quality > 0.0 && quality < 0.02, "{report}");
+    let messages: Vec<&str> = report["faults"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["check"] == "quality" && f["file"] == "mesh.msh")
+        .map(|f| f["message"].as_str().unwrap())
+        .collect();
+    let named = format!("worst: tetrahedron {flat} (stapes) at {quality:.3e}");
+    assert!(
+        messages
+            .iter()
+            .any(|m| m.contains("below shape quality 0.02") && m.contains(&named)),
+        "{named} in {messages:?}"
+    );
+    assert_eq!(elements["min_volume_ratio_tetrahedron"], flat, "{report}");
+    let named = format!(
+        "below 5% of their atlas volume (times the fit's scale^3), worst: \
+                         tetrahedron {flat} (stapes)"
+    );
+    assert!(
+        messages.iter().any(|m| m.contains(&named)),
+        "{named} in {messages:?}"
+    );
+    assert!(
+        report["faults"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|f| f["check"] != "orientation"),
+        "{report}"
+    );
 }
 
 #[test]

@@ -429,7 +429,8 @@ fn fmt(v: f64) -> String {
     }
 }
 
-/// Slicer markups `.fcsv` text (LPS).
+/// Slicer markups `.fcsv` text (LPS). The orientation columns are a quaternion w,x,y,z: the
+/// identity is `1,0,0,0`, as Slicer writes it.
 pub fn write_fcsv(l: &Landmarks) -> String {
     let mut s = String::from(
         "# Markups fiducial file version = 4.11\n# CoordinateSystem = LPS\n# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n",
@@ -437,7 +438,7 @@ pub fn write_fcsv(l: &Landmarks) -> String {
     for (k, name) in LandmarkName::ALL.iter().enumerate() {
         let p = l.get(*name);
         s.push_str(&format!(
-            "{},{},{},{},0,0,0,1,1,1,0,{},,\n",
+            "{},{},{},{},1,0,0,0,1,1,0,{},,\n",
             k + 1,
             fmt(p.x),
             fmt(p.y),
@@ -488,4 +489,29 @@ pub fn write_json(l: &Landmarks, side: Option<Side>) -> String {
         doc.insert(name.key().into(), json!([p.x, p.y, p.z]));
     }
     serde_json::to_string_pretty(&Value::Object(doc)).unwrap_or_default() + "\n"
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Slicer's writer (Slicer/Slicer, Libs/MRML/Core/vtkMRMLMarkupsFiducialStorageNode.cxx):
+    /// `double orientation[4] = { 1.0, 0.0, 0.0, 0.0 };` then
+    /// `of << separator << DoubleConvert(orientation[0]) << ... orientation[3]` under the header
+    /// `# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID`: an identity
+    /// orientation is written `1,0,0,0`. The defect: ours wrote `0,0,0,1`.
+    #[test]
+    fn fcsv_orientation_is_slicers_identity_quaternion() {
+        let text = write_fcsv(&Landmarks {
+            umbo: Point3::new(1.0, 2.0, 3.0),
+            incudomalleolar: Point3::new(4.0, 5.0, 6.0),
+            incudostapedial: Point3::new(7.0, 8.0, 9.0),
+        });
+        let rows: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+        assert_eq!(rows.len(), 3);
+        for row in rows {
+            let columns: Vec<&str> = row.split(',').collect();
+            assert_eq!(columns[4..8], ["1", "0", "0", "0"], "{row}");
+        }
+    }
 }

@@ -1,9 +1,12 @@
 //! SHA-256 digests of files and folders: the per-file hashes a package's manifest lists, and
 //! one digest over a set of inputs (a case's image, landmark file and segmentation) that a
-//! batch can recompute before running to see whether a package is still current.
+//! batch can recompute before running to see whether a package is still current; and a
+//! package's listing, which follows no link.
 
 use std::collections::BTreeMap;
 use std::path::Path;
+
+use sha2::{Digest, Sha256};
 
 use crate::io_util::{FileError, io_err, sha256_hex};
 
@@ -11,35 +14,78 @@ use crate::io_util::{FileError, io_err, sha256_hex};
 /// with `/` separators, sorted, each with the SHA-256 of its bytes. A file `dir` itself gives
 /// one entry named after it.
 pub fn file_digests(dir: &Path) -> Result<BTreeMap<String, String>, FileError> {
-    let mut out = BTreeMap::new();
     if dir.is_file() {
         let name = dir
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        out.insert(name, file_sha256(dir)?);
-        return Ok(out);
+        return Ok(BTreeMap::from([(name, file_sha256(dir)?)]));
     }
+    Ok(walk(dir, true)?.files)
+}
+
+/// A folder's entries as `walk` found them.
+#[derive(Debug, Default, PartialEq)]
+pub struct Listing {
+    /// Regular files (relative path, `/` separated) with the SHA-256 of their bytes.
+    pub files: BTreeMap<String, String>,
+    /// Entries that are neither a regular file nor a folder, with what they are: "symbolic
+    /// link" (not followed), "FIFO", "socket", "block device", "character device".
+    pub others: BTreeMap<String, &'static str>,
+}
+
+/// Every entry under `dir`, without following symbolic links: a package holds only regular
+/// files and folders, so a link (which may point out of it) or a special file is listed as
+/// such and never opened.
+pub fn package_listing(dir: &Path) -> Result<Listing, FileError> {
+    walk(dir, false)
+}
+
+/// What a non-regular, non-folder entry is.
+fn kind(file_type: std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    match file_type {
+        t if t.is_symlink() => "symbolic link",
+        t if t.is_fifo() => "FIFO",
+        t if t.is_socket() => "socket",
+        t if t.is_block_device() => "block device",
+        t if t.is_char_device() => "character device",
+        _ => "special file",
+    }
+}
+
+fn walk(dir: &Path, follow_links: bool) -> Result<Listing, FileError> {
+    let mut out = Listing::default();
     let mut stack = vec![(dir.to_path_buf(), String::new())];
     while let Some((folder, prefix)) = stack.pop() {
         for entry in std::fs::read_dir(&folder).map_err(io_err(&folder))? {
             let entry = entry.map_err(io_err(&folder))?;
             let path = entry.path();
             let rel = format!("{prefix}{}", entry.file_name().to_string_lossy());
-            let meta = std::fs::metadata(&path).map_err(io_err(&path))?;
+            let meta = if follow_links {
+                std::fs::metadata(&path)
+            } else {
+                std::fs::symlink_metadata(&path)
+            }
+            .map_err(io_err(&path))?;
             if meta.is_dir() {
                 stack.push((path, format!("{rel}/")));
             } else if meta.is_file() {
-                out.insert(rel, file_sha256(&path)?);
+                out.files.insert(rel, file_sha256(&path)?);
+            } else {
+                out.others.insert(rel, kind(meta.file_type()));
             }
         }
     }
     Ok(out)
 }
 
-/// SHA-256 of a file's bytes (lower-case hex).
+/// SHA-256 of a file's bytes (lower-case hex), read in pieces (a file never whole in memory).
 pub fn file_sha256(path: &Path) -> Result<String, FileError> {
-    Ok(sha256_hex(&std::fs::read(path).map_err(io_err(path))?))
+    let mut file = std::fs::File::open(path).map_err(io_err(path))?;
+    let mut hasher = Sha256::new();
+    std::io::copy(&mut file, &mut hasher).map_err(io_err(path))?;
+    Ok(format!("{:x}", hasher.finalize()))
 }
 
 /// One digest over named file digests: SHA-256 of the lines `name<TAB>sha256\n` in the order

@@ -149,6 +149,8 @@ pub struct Manifest {
     pub version: u32,
     pub otoatlas_version: String,
     pub units: Units,
+    /// The SOFA versions the scene is correct on (`sofa::SOFA_VERSIONS`).
+    pub sofa_versions: String,
     pub side: Side,
     pub atlas: AtlasRef,
     /// SHA-256 of the DICOM SeriesInstanceUID (None for NIfTI input); never the UID.

@@ -16,4 +16,4 @@ pub mod verify;
 pub use error::ExportError;
 pub use manifest::{Manifest, MechanicsSummary, atlas_sha256};
 pub use package::{PackageInput, write_package};
-pub use verify::{Fault, VerifyReport, verify_package};
+pub use verify::{Fault, VerifyReport, verify_package, verify_package_against};

@@ -15,6 +15,7 @@ use super::manifest::{
     VERSION, atlas_sha256,
 };
 use super::scene::{SCENE, SCENE_MESH, scene_string};
+use super::sofa::SOFA_VERSIONS;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, manifest_string};
@@ -125,6 +126,7 @@ fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, ExportError
         version: VERSION,
         otoatlas_version: env!("CARGO_PKG_VERSION").into(),
         units: Units::ours(),
+        sofa_versions: SOFA_VERSIONS.into(),
         side: atlas.side,
         atlas: AtlasRef {
             name: atlas.name.clone(),

@@ -1,4 +1,4 @@
-//! The package's SOFA scene (`scene.scn`, SOFA v23.06 and later): it loads `mesh.msh` beside
+//! The package's SOFA scene (`scene.scn`, SOFA v23.12 to v24.12: `sofa::SOFA_VERSIONS`): it loads `mesh.msh` beside
 //! it with MeshGmshLoader and simulates the registered atlas as otoatlas's own mechanics does
 //! (`mechanics::MechanicalSystem`: the same lumped masses, fixed nodes, annular-ligament
 //! springs, cochlear dashpots and Rayleigh damping; the eardrum's bending as linear bending
@@ -21,7 +21,7 @@ use nalgebra::Point3;
 
 use super::ExportError;
 use super::scene_bending::{self, BendingLayer};
-use super::sofa::plugins_for;
+use super::sofa::{SOFA_VERSIONS, plugins_for};
 use crate::atlas::Atlas;
 use crate::atlas::export::material_arrays;
 use crate::mechanics::MechanicalSystem;
@@ -166,8 +166,9 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Expo
         used.extend(["FastTriangularBendingSprings", "ConstantForceField"]);
     }
     let mut s = String::from("<?xml version=\"1.0\"?>\n");
-    s.push_str(
-        "<!-- otoatlas patient package: SOFA scene for v23.06 and later (runSofa scene.scn) -->\n\
+    let _ = write!(
+        s,
+        "<!-- otoatlas patient package: SOFA scene for {SOFA_VERSIONS} (runSofa scene.scn) -->\n\
          <!-- units mm, g, s: force uN, Young's modulus and pressure Pa, mass g, spring \
          stiffness uN/mm, damping g/s; positions in DICOM patient space (LPS) -->\n",
     );

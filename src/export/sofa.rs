@@ -4,6 +4,12 @@
 //! The scene writer emits only these; `verify` rejects any other element and any component
 //! whose plugin the scene does not require.
 
+/// The SOFA versions the scene is correct on: DiagonalVelocityDampingForceField has no
+/// implicit terms in v23.06 (its `addDForce` and `addBToMatrix` are empty; restored in v23.12,
+/// sofa-framework/sofa #3999), which with c·dt/m up to 28.6 on the footplate is unstable; and
+/// `FixedConstraint`, the only name v23.12 knows, is removed in v25.06.
+pub const SOFA_VERSIONS: &str = "v23.12 to v24.12";
+
 /// Elements of the scene file that are not components (no plugin to load).
 pub const STRUCTURAL: [&str; 2] = ["Node", "RequiredPlugin"];
 

@@ -1,5 +1,7 @@
-//! Tetrahedron quality: dihedral angles and the radius–edge ratio (circumradius over shortest
-//! edge; √6/4 ≈ 0.612 for the regular tet), per tet and summarised per region.
+//! Tetrahedron quality: dihedral angles, the radius–edge ratio (circumradius over shortest
+//! edge; √6/4 ≈ 0.612 for the regular tet), per tet and summarised per region, and the shape
+//! quality (volume over the regular tetrahedron's of the same RMS edge) that the registration's
+//! surface level and `verify` bound.
 //!
 //! Dihedral angle at an edge = π − angle between the outward normals of the two faces that
 //! meet there (Shewchuk, "What is a good linear finite element?", 2002). Circumcentre of
@@ -9,7 +11,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::TetMesh;
-use super::tet::TET_FACES;
+use super::tet::{TET_FACES, signed_volume};
 
 /// Quality summary of a set of tets. Angles in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -69,6 +71,24 @@ pub fn radius_edge_ratio(p: &[Point3<f64>; 4]) -> f64 {
         }
     }
     x.norm() / shortest
+}
+
+/// The tetrahedron's volume over that of the regular one with its RMS edge length: 1 for a
+/// regular tetrahedron, 0 when flat, negative when inverted (the mean-ratio family of
+/// measures; scale invariant, and like gmsh's gamma it vanishes with the volume).
+pub fn shape_quality(p: &[Point3<f64>; 4]) -> f64 {
+    let [a, b, c, d] = p;
+    let squares = [(a, b), (a, c), (a, d), (b, c), (b, d), (c, d)]
+        .iter()
+        .map(|(u, v)| (*u - *v).norm_squared())
+        .sum::<f64>()
+        / 6.0;
+    let regular = squares.powf(1.5) / (6.0 * std::f64::consts::SQRT_2);
+    if regular > 0.0 {
+        signed_volume(a, b, c, d) / regular
+    } else {
+        0.0
+    }
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -132,6 +152,8 @@ mod tests {
         let expected = (1.0f64 / 3.0).acos();
         assert!((lo - expected).abs() < 1e-12 && (hi - expected).abs() < 1e-12);
         assert!((radius_edge_ratio(&regular()) - 6f64.sqrt() / 4.0).abs() < 1e-12);
+        // negatively oriented as listed
+        assert!((shape_quality(&regular()) + 1.0).abs() < 1e-12);
     }
 
     #[test]
@@ -159,6 +181,7 @@ mod tests {
             Point3::new(0.25, 0.25, 0.),
         ];
         assert!(radius_edge_ratio(&p).is_infinite());
+        assert_eq!(shape_quality(&p), 0.0);
         assert!(dihedral_range(&p).0 < 1e-9);
     }
 }

@@ -36,7 +36,8 @@ use super::deform::{
     screen, triangle_neighbours,
 };
 use crate::image::Sampler;
-use crate::mesh::tet::{TetMesh, signed_volume};
+use crate::mesh::quality::shape_quality;
+use crate::mesh::tet::TetMesh;
 
 /// No move may leave an element's shape quality (its volume over the regular tetrahedron's
 /// of its RMS edge; 1 regular, 0 flat) below this...
@@ -335,19 +336,7 @@ fn failing_elements(mesh: &TetMesh, floors: &[f64], after: &[Point3<f64>]) -> Ve
         .collect()
 }
 
-/// The tetrahedron's volume over that of the regular one with its RMS edge length (1 for a
-/// regular tetrahedron, 0 when flat, negative when inverted).
+/// The shape quality of tetrahedron `t` at `p` (`mesh::quality::shape_quality`).
 fn quality(p: &[Point3<f64>], t: &[u32; 4]) -> f64 {
-    let [a, b, c, d] = t.map(|k| p[k as usize]);
-    let squares = [(a, b), (a, c), (a, d), (b, c), (b, d), (c, d)]
-        .iter()
-        .map(|(u, v)| (u - v).norm_squared())
-        .sum::<f64>()
-        / 6.0;
-    let regular = squares.powf(1.5) / (6.0 * std::f64::consts::SQRT_2);
-    if regular > 0.0 {
-        signed_volume(&a, &b, &c, &d) / regular
-    } else {
-        0.0
-    }
+    shape_quality(&t.map(|k| p[k as usize]))
 }

@@ -6,7 +6,8 @@ use serde::Serialize;
 /// One thing wrong with a package.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Fault {
-    /// The kind of check: manifest, missing, unlisted, hash, mesh, orientation, atlas, scene.
+    /// The kind of check: manifest, special, missing, unlisted, hash, mesh, orientation, quality,
+    /// atlas, scene.
     pub check: &'static str,
     /// The file it is about, relative to the package.
     pub file: String,

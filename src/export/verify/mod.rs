@@ -1,8 +1,9 @@
 //! `verify`: checks that a package is whole and consistent — every file re-hashed against the
 //! manifest (none missing, none unlisted), the manifest's fields (format, version, units,
-//! configuration hash, mesh counts), mesh.msh and mesh.vtu read back and equal, no inverted
-//! or degenerate tetrahedron, atlas.json valid over mesh.vtu, and the SOFA scene's components
-//! and vectors against the mesh (`verify_scene`). Every fault is collected, not just the first.
+//! configuration hash, mesh counts), mesh.msh and mesh.vtu read back and equal, no inverted,
+//! flattened or collapsed tetrahedron (`elements`), atlas.json valid over mesh.vtu, and the
+//! SOFA scene's components and vectors against the mesh (`verify_scene`). Every fault is
+//! collected, not just the first.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -10,20 +11,26 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 mod bending;
+mod elements;
 mod faults;
 mod scene;
 mod xml;
 
 use super::ExportError;
-use super::digest::file_digests;
-use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION};
+use super::digest::package_listing;
+use super::manifest::{FORMAT, MANIFEST, Manifest, MeshCounts, Units, VERSION, atlas_sha256};
 use super::scene::{SCENE, SCENE_MESH};
+use super::sofa::SOFA_VERSIONS;
 use crate::atlas::Atlas;
-use crate::atlas::format::{MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, read_atlas};
+use crate::atlas::format::{
+    MANIFEST as ATLAS_MANIFEST, MESH as ATLAS_MESH, default_atlas, read_atlas,
+};
+use crate::io_util::read_text;
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::io::gmsh::read_msh;
 use crate::mesh::io::vtu::read_vtu;
-use crate::mesh::tet::signed_volume;
+pub use elements::{ElementQuality, MIN_SHAPE_QUALITY, MIN_VOLUME_RATIO};
+use elements::{Reference, check_orientation, check_quality};
 pub use faults::Fault;
 use faults::Faults;
 use scene::check_scene;
@@ -49,6 +56,8 @@ pub struct VerifyReport {
     pub atlas: Option<Atlas>,
     /// Files whose hash was compared.
     pub files_checked: usize,
+    /// The worst tetrahedra of mesh.msh, when it could be read.
+    pub elements: Option<ElementQuality>,
     pub faults: Vec<Fault>,
 }
 
@@ -63,6 +72,7 @@ impl VerifyReport {
             "package": self.package,
             "passed": self.passed(),
             "files_checked": self.files_checked,
+            "elements": self.elements,
             "mesh": self.manifest.as_ref().map(|m| m.mesh),
             "inputs_sha256": self.manifest.as_ref().map(|m| &m.inputs_sha256),
             "config_sha256": self.manifest.as_ref().map(|m| &m.config_sha256),
@@ -82,6 +92,24 @@ impl VerifyReport {
                 m.map_or(0, |m| m.tetrahedra),
                 m.map_or(0, |m| m.triangles)
             ));
+            if let Some(e) = &self.elements {
+                s.push_str(&format!(
+                    "  least shape quality {:.3} (bound {MIN_SHAPE_QUALITY}); ",
+                    e.min_shape_quality
+                ));
+                s.push_str(&e.min_volume_ratio.map_or_else(
+                    || {
+                        "volume ratios to the atlas not checked: the manifest's atlas is not the \
+                         embedded one (give it with --atlas)\n"
+                            .to_string()
+                    },
+                    |r| {
+                        format!(
+                            "least volume ratio to the atlas {r:.3} (bound {MIN_VOLUME_RATIO})\n"
+                        )
+                    },
+                ));
+            }
         } else {
             s.push_str(&format!("{} fault(s)\n", self.faults.len()));
             for f in &self.faults {
@@ -92,36 +120,69 @@ impl VerifyReport {
     }
 }
 
-/// Verifies the package at `dir`. `Err` only when `dir` is not a readable folder; every
-/// problem inside it is a fault of the report.
+/// Verifies the package at `dir`, comparing its tetrahedra's volumes with the embedded atlas's
+/// when the package was registered from it. `Err` only when `dir` is not a readable folder;
+/// every problem inside it is a fault of the report.
 pub fn verify_package(dir: &Path) -> Result<VerifyReport, ExportError> {
+    verify_package_against(dir, None)
+}
+
+/// [`verify_package`], with the atlas the package was registered from (either side: it is
+/// mirrored to the package's). An atlas that is not the one the manifest names is a fault.
+pub fn verify_package_against(
+    dir: &Path,
+    atlas: Option<&Atlas>,
+) -> Result<VerifyReport, ExportError> {
     if !dir.is_dir() {
         return Err(ExportError::NotAPackage {
             path: dir.to_path_buf(),
             manifest: MANIFEST,
         });
     }
-    let actual = file_digests(dir)?;
+    let listing = package_listing(dir)?;
+    let actual = listing.files;
     let mut faults = Faults::default();
-    let manifest = read_manifest(dir, &mut faults);
+    for (name, kind) in &listing.others {
+        let target = std::fs::read_link(dir.join(name))
+            .map(|t| format!(" to {}", t.display()))
+            .unwrap_or_default();
+        faults.add(
+            "special",
+            name,
+            format!("a {kind}{target}, not a regular file: a package holds only files and folders"),
+        );
+    }
+    let manifest = if actual.contains_key(MANIFEST) {
+        read_manifest(dir, &mut faults)
+    } else {
+        faults.add("manifest", MANIFEST, "absent, or not a regular file");
+        None
+    };
     let mut report = VerifyReport {
         package: dir.to_path_buf(),
         manifest: manifest.clone(),
         atlas: None,
         files_checked: 0,
+        elements: None,
         faults: Vec::new(),
     };
     if let Some(m) = &manifest {
         report.files_checked = check_files(m, &actual, &mut faults);
         check_fields(m, &mut faults);
-        report.atlas = check_content(dir, m, &mut faults);
+        let source = source_atlas(m, atlas, &mut faults);
+        let reference = source.as_ref().map(|atlas| Reference {
+            atlas,
+            scale: m.atlas_to_patient.scale,
+        });
+        (report.atlas, report.elements) =
+            check_content(dir, m, &actual, reference.as_ref(), &mut faults);
     }
     report.faults = faults.0;
     Ok(report)
 }
 
 fn read_manifest(dir: &Path, faults: &mut Faults) -> Option<Manifest> {
-    let text = match std::fs::read_to_string(dir.join(MANIFEST)) {
+    let text = match read_text(&dir.join(MANIFEST)) {
         Ok(t) => t,
         Err(e) => {
             faults.add("manifest", MANIFEST, format!("cannot be read: {e}"));
@@ -150,7 +211,7 @@ fn read_manifest(dir: &Path, faults: &mut Faults) -> Option<Manifest> {
 }
 
 /// Re-hashes the files; returns how many listed files were compared.
-fn check_files(m: &Manifest, actual: &BTreeMap<String, String>, faults: &mut Faults) -> usize {
+fn check_files(m: &Manifest, actual: &Files, faults: &mut Faults) -> usize {
     let mut checked = 0;
     for (name, want) in &m.files {
         match actual.get(name) {
@@ -182,6 +243,16 @@ fn check_files(m: &Manifest, actual: &BTreeMap<String, String>, faults: &mut Fau
 }
 
 fn check_fields(m: &Manifest, faults: &mut Faults) {
+    if m.sofa_versions != SOFA_VERSIONS {
+        faults.add(
+            "manifest",
+            MANIFEST,
+            format!(
+                "sofa_versions '{}', expected '{SOFA_VERSIONS}'",
+                m.sofa_versions
+            ),
+        );
+    }
     if m.units != Units::ours() {
         faults.add(
             "manifest",
@@ -239,43 +310,105 @@ fn check_counts(mesh: &VolumeMesh, want: MeshCounts, file: &str, faults: &mut Fa
     }
 }
 
-/// Tetrahedra with a non-positive volume.
-fn check_orientation(mesh: &VolumeMesh, file: &str, faults: &mut Faults) {
-    let bad: Vec<(usize, f64)> = (0..mesh.tets.tets.len())
-        .filter_map(|t| {
-            let [a, b, c, d] = mesh.tets.corners(t);
-            let v = signed_volume(&a, &b, &c, &d);
-            (v.is_nan() || v <= 1e-12).then_some((t, v))
-        })
-        .collect();
-    if let Some(&(first, v)) = bad.first() {
+/// The atlas the package was registered from, mirrored to its side: `given`, which must be
+/// the one the manifest names (a fault otherwise), or the embedded atlas when it is that one.
+fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Option<Atlas> {
+    let atlas = match given {
+        Some(a) => a.clone(),
+        None => default_atlas().ok()?,
+    };
+    let atlas = if atlas.side == m.side {
+        atlas
+    } else {
+        atlas.mirrored()
+    };
+    let digest = atlas_sha256(&atlas).ok()?;
+    if digest == m.atlas.sha256 {
+        return Some(atlas);
+    }
+    if given.is_some() {
         faults.add(
-            "orientation",
-            file,
+            "quality",
+            MANIFEST,
             format!(
-                "{} inverted or degenerate tetrahedra (volume <= 0), first: tetrahedron {first} \
-                 ({v:.3e} mm^3)",
-                bad.len()
+                "the package was registered from atlas '{}' (SHA-256 {}), the atlas given is \
+                 '{}' (SHA-256 {digest})",
+                m.atlas.name, m.atlas.sha256, atlas.name
             ),
         );
     }
+    None
 }
 
-/// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read.
-fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas> {
-    let msh = read_msh(&dir.join(SCENE_MESH))
-        .map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
-        .ok();
-    let vtu = read_vtu(&dir.join(ATLAS_MESH))
-        .map(|(mesh, _)| mesh)
-        .map_err(|e| faults.add("mesh", ATLAS_MESH, e.to_string()))
-        .ok();
+/// Bytes a file read whole may have per node and element the manifest counts, and besides.
+const BYTES_PER_ITEM: u64 = 256;
+const BYTES_BESIDES: u64 = 1 << 20;
+
+/// Whether the package file `name` may be read whole: a regular file (links and special
+/// files are faults of their own and never opened) no larger than its manifest's counts
+/// allow, so that a huge or endless file is refused before it is read.
+fn readable(dir: &Path, name: &str, m: &Manifest, files: &Files, faults: &mut Faults) -> bool {
+    if !files.contains_key(name) {
+        return false;
+    }
+    let counts = (m.mesh.nodes + m.mesh.tetrahedra + m.mesh.triangles) as u64;
+    let limit = counts
+        .saturating_mul(BYTES_PER_ITEM)
+        .saturating_add(BYTES_BESIDES);
+    match std::fs::symlink_metadata(dir.join(name)) {
+        Ok(meta) if meta.len() <= limit => true,
+        Ok(meta) => {
+            faults.add(
+                "mesh",
+                name,
+                format!(
+                    "{} bytes, more than the {limit} its manifest's counts allow ({} bytes per \
+                     node and element, and 1 MiB); not read",
+                    meta.len(),
+                    BYTES_PER_ITEM
+                ),
+            );
+            false
+        }
+        Err(_) => false,
+    }
+}
+
+/// The package's regular files with their SHA-256.
+type Files = BTreeMap<String, String>;
+
+/// Checks the meshes, atlas.json and the scene; returns the atlas when it could be read and
+/// the worst tetrahedra of the scene's mesh.
+fn check_content(
+    dir: &Path,
+    m: &Manifest,
+    files: &Files,
+    reference: Option<&Reference>,
+    faults: &mut Faults,
+) -> (Option<Atlas>, Option<ElementQuality>) {
+    let msh = readable(dir, SCENE_MESH, m, files, faults)
+        .then(|| read_msh(&dir.join(SCENE_MESH)))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("mesh", SCENE_MESH, e.to_string()))
+                .ok()
+        });
+    let vtu_ok = readable(dir, ATLAS_MESH, m, files, faults);
+    let vtu = vtu_ok
+        .then(|| read_vtu(&dir.join(ATLAS_MESH)))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("mesh", ATLAS_MESH, e.to_string()))
+                .ok()
+        })
+        .map(|(mesh, _)| mesh);
     for (mesh, file) in [(&msh, SCENE_MESH), (&vtu, ATLAS_MESH)] {
         if let Some(mesh) = mesh {
             check_counts(mesh, m.mesh, file, faults);
             check_orientation(mesh, file, faults);
         }
     }
+    let elements = msh
+        .as_ref()
+        .and_then(|mesh| check_quality(mesh, reference, SCENE_MESH, faults));
     if let (Some(a), Some(b)) = (&msh, &vtu)
         && a != b
     {
@@ -285,12 +418,18 @@ fn check_content(dir: &Path, m: &Manifest, faults: &mut Faults) -> Option<Atlas>
             format!("differs from {ATLAS_MESH} (nodes, cells or region labels)"),
         );
     }
-    let atlas = read_atlas(dir)
-        .map_err(|e| faults.add("atlas", ATLAS_MANIFEST, e.to_string()))
-        .ok();
+    let atlas = (vtu_ok && readable(dir, ATLAS_MANIFEST, m, files, faults))
+        .then(|| read_atlas(dir))
+        .and_then(|r| {
+            r.map_err(|e| faults.add("atlas", ATLAS_MANIFEST, e.to_string()))
+                .ok()
+        });
+    if !readable(dir, SCENE, m, files, faults) {
+        return (atlas, elements);
+    }
     match std::fs::read_to_string(dir.join(SCENE)) {
         Err(e) => faults.add("scene", SCENE, format!("cannot be read: {e}")),
         Ok(text) => check_scene(&text, msh.as_ref(), atlas.as_ref(), &m.files, faults),
     }
-    atlas
+    (atlas, elements)
 }

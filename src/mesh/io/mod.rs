@@ -56,9 +56,11 @@ pub(crate) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), MeshIoError> 
         .map_err(|crate::io_util::FileError { path, source }| MeshIoError::Io { path, source })
 }
 
-/// Reads a text file (UTF-8, lossy for stray bytes in comments).
+/// Reads a text file (UTF-8, lossy for stray bytes in comments), holding it once in memory
+/// when it is valid UTF-8 (no copy).
 pub(crate) fn read_text(path: &Path) -> Result<String, MeshIoError> {
-    Ok(String::from_utf8_lossy(&read_bytes(path)?).into_owned())
+    Ok(String::from_utf8(read_bytes(path)?)
+        .unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned()))
 }
 
 /// Checks that every triangle index is below `vertices`.
