@@ -13,7 +13,6 @@ use super::faults::Faults;
 use crate::atlas::Atlas;
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::quality::shape_quality;
-use crate::mesh::tet::signed_volume;
 
 /// Least shape quality of a tetrahedron (its volume over the regular tetrahedron's of the
 /// same RMS edge; 1 regular, 0 flat).
@@ -74,8 +73,7 @@ fn worst(values: &[f64], bound: f64) -> Option<Worst> {
 pub(super) fn check_orientation(mesh: &VolumeMesh, file: &str, faults: &mut Faults) {
     let bad: Vec<(usize, f64)> = (0..mesh.tets.tets.len())
         .filter_map(|t| {
-            let [a, b, c, d] = mesh.tets.corners(t);
-            let v = signed_volume(&a, &b, &c, &d);
+            let v = mesh.tets.tet_volume(t);
             (v.is_nan() || v <= 1e-12).then_some((t, v))
         })
         .collect();
@@ -146,13 +144,9 @@ pub(super) fn check_quality(
         );
         return Some(summary);
     }
-    let volume = |m: &crate::mesh::TetMesh, t: usize| {
-        let [a, b, c, d] = m.corners(t);
-        signed_volume(&a, &b, &c, &d)
-    };
     let cube = r.scale.powi(3);
     let ratio: Vec<f64> = (0..tets.tets.len())
-        .map(|t| volume(tets, t) / (volume(rest, t).abs() * cube))
+        .map(|t| tets.tet_volume(t) / (rest.tet_volume(t).abs() * cube))
         .collect();
     let Worst {
         index: worst,
@@ -172,8 +166,8 @@ pub(super) fn check_quality(
                 MIN_VOLUME_RATIO * 100.0,
                 region_name(names, tets.regions[worst]),
                 v * 100.0,
-                volume(tets, worst),
-                volume(rest, worst).abs() * cube,
+                tets.tet_volume(worst),
+                rest.tet_volume(worst).abs() * cube,
                 quality[worst]
             ),
         );
