@@ -13,6 +13,12 @@
 //! area-weighted mean of the image just inside minus just outside each outer triangle. A
 //! surface lying on the bone's edges scores high; one in air or buried in the otic capsule
 //! scores near zero. The best turn (no turn among the candidates) is the articulation's start.
+//!
+//! Speed: the 2,601 turns are first screened on every [`SCREEN_STRIDE`]-th triangle of the
+//! surface (the contrast is an area-weighted mean; a quarter of ~800 triangles spread over the
+//! whole stapes ranks the turns as all do), then the [`FINALISTS`] best are scored on every
+//! triangle and the best of those is kept: about a third of the samples of scoring every turn
+//! on every triangle.
 
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
@@ -29,6 +35,10 @@ const AZIMUTH_STEP_DEG: f64 = 15.0;
 const SPIN_STEP_DEG: f64 = 10.0;
 /// Largest spin about the stapes's own axis \[deg\].
 const MAX_SPIN_DEG: f64 = 40.0;
+/// The screening pass scores every turn on every this many-th surface triangle...
+const SCREEN_STRIDE: usize = 4;
+/// ... and this many of its best turns are scored again on every triangle.
+const FINALISTS: usize = 32;
 
 /// What the search found (part of the articulation's record).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -69,7 +79,8 @@ pub fn search(
         .iter()
         .fold(Vector3::zeros(), |s, (c, _, a)| s + c.coords * *a)
         / area.max(f64::MIN_POSITIVE);
-    let score = |turn: &Rotation3<f64>| -> f64 {
+    // the area-weighted mean contrast of `patches` (total area `area`) after `turn`
+    let score = |patches: &[(Point3<f64>, Vector3<f64>, f64)], area: f64, turn: &Rotation3<f64>| {
         patches
             .iter()
             .map(|(c, n, a)| {
@@ -87,7 +98,7 @@ pub fn search(
             / area
     };
     let before = if area > 0.0 {
-        score(&Rotation3::identity())
+        score(&patches, area, &Rotation3::identity())
     } else {
         0.0
     };
@@ -103,13 +114,32 @@ pub fn search(
     }
     let candidates = turns(&Unit::new_normalize(axis), max_tilt_deg);
     record.candidates = candidates.len();
-    let best = candidates
+    let screen: Vec<_> = patches.iter().step_by(SCREEN_STRIDE).copied().collect();
+    let screen_area: f64 = screen.iter().map(|p| p.2).sum();
+    let mut ranked: Vec<(f64, usize)> = candidates
         .par_iter()
-        .map(|turn| (score(turn), *turn))
-        .reduce(
-            || (before, Rotation3::identity()),
-            |a, b| if b.0 > a.0 { b } else { a },
-        );
+        .enumerate()
+        .map(|(k, turn)| (score(&screen, screen_area, turn), k))
+        .collect();
+    // best first; ties in grid order, so the result does not depend on the thread count
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let best = ranked
+        .par_iter()
+        .take(FINALISTS)
+        .map(|&(_, k)| (score(&patches, area, &candidates[k]), k))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((before, None), |best, (value, k)| {
+            if value > best.0 {
+                (value, Some(k))
+            } else {
+                best
+            }
+        });
+    let best = (
+        best.0,
+        best.1.map_or_else(Rotation3::identity, |k| candidates[k]),
+    );
     record.turn_deg = best.1.angle().to_degrees();
     record.contrast_after_hu = best.0;
     (best.1, record)
