@@ -537,14 +537,16 @@ fn the_sofa_chain_imports_into_a_usable_atlas() {
     // a left ear (docs/anatomy.md), as the landmark file states
     assert_eq!(info["side"], "left");
     // the labelled chain's figures (docs/anatomy.md, "Test anatomy"): malleus 11.48 mm³,
-    // incus + stapes 15.67 mm³, chain 27.15 mm³
-    let (m, i, s) = (
+    // incus + stapes 15.67 mm³ with the two soft-tissue stubs of label 2 (0.29 + 0.15 mm³)
+    let (m, i, s, stubs) = (
         part_size(&info, "malleus"),
         part_size(&info, "incus"),
         part_size(&info, "stapes"),
+        part_size(&info, "connective"),
     );
     assert!((m - 11.48).abs() < 0.01, "malleus {m}");
-    assert!((i + s - 15.67).abs() < 0.01, "incus {i} + stapes {s}");
+    assert!((i + s + stubs - 15.67).abs() < 0.01, "incus {i} + stapes {s} + stubs {stubs}");
+    assert!((0.40..=0.48).contains(&stubs), "stubs {stubs} mm³");
     assert!((1.0..=2.5).contains(&s), "stapes {s} mm³");
     assert!((10.0..=16.0).contains(&i), "incus {i} mm³");
     // round trip through the format, and the FEM model builds

@@ -5,7 +5,9 @@
 //!
 //! - SOFA's tetrahedral chain (a left ear), imported with the fixtures of `tests/atlas_cli`
 //!   and exported as one closed surface per ossicle (`otoatlas atlas import` + `atlas export`);
-//!   its landmarks are the fixture's (docs/anatomy.md, "Real chains").
+//!   its landmarks are the fixture's (docs/anatomy.md, "Real chains"). The fixture's mapping
+//!   gives the two soft-tissue stubs of its incus label (tendon and ligament, not bone) to
+//!   connective tissue, so the truth is the bones alone.
 //! - The CT-derived chain `455` (a right ear, one fused surface inflated by the CT's partial
 //!   volume, rendered as it is); its landmarks were picked once by the method of
 //!   docs/anatomy.md ("Real chains") and are kept here. Its fused truth is compared with the
@@ -30,13 +32,14 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
  "incudostapedial": [1.148, 0.358, -2.358]}"#;
 
 /// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm] (per
-/// chain: SOFA's incus label carries tendon and ligament stubs up to 2.8 mm from any incus,
-/// docs/registration.md), and the least improvement of the chain MASD over the landmark fit.
+/// chain: the CT chain's tail is its footplate rim against the otic capsule and thin processes
+/// its partial volume lost, docs/registration.md), and the least improvement of the chain
+/// MASD over the landmark fit (the target).
 const MASD_MAX_VOXELS: f64 = 0.7;
 const MASD_MAX_MM: f64 = 0.15;
-const HD95_MAX_MM_SOFA: f64 = 1.5;
+const HD95_MAX_MM_SOFA: f64 = 0.6;
 const HD95_MAX_MM_CT: f64 = 0.9;
-const MIN_IMPROVEMENT: f64 = 0.45;
+const MIN_IMPROVEMENT: f64 = 0.5;
 
 fn run_ok(args: &[&str]) {
     let out = otoatlas(args);
