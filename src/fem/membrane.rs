@@ -8,7 +8,7 @@
 //! the in-plane rotation by polar decomposition, so it does not depend on the vertex order.
 //! A triangle is collapsed when its current area vanishes.
 
-use nalgebra::{Matrix3, Point3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::element::CorotElement;
 use super::error::FemError;
@@ -54,22 +54,33 @@ pub(crate) fn rest_membrane(
     })
 }
 
+/// The unit normal of the membrane triangle at `x`; `None` if it collapsed (its area below
+/// [`DEGENERATE_AREA`] times the rest area).
+fn current_normal(tri: &MembraneElement, x: &[Point3<f64>]) -> Option<Vector3<f64>> {
+    let p = tri.nodes.map(|n| x[n as usize]);
+    let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
+    let rest_twice_area = 2.0 * tri.measure_area();
+    let twice_area = cross.norm();
+    (twice_area > DEGENERATE_AREA * rest_twice_area).then(|| cross / twice_area)
+}
+
+/// Whether the membrane triangle is admissible (not collapsed) at `x`.
+pub(crate) fn membrane_admissible(tri: &MembraneElement, x: &[Point3<f64>]) -> bool {
+    current_normal(tri, x).is_some()
+}
+
 /// Rotation of the membrane triangle and whether it is admissible (not collapsed).
 pub(crate) fn membrane_rotation(
     tri: &MembraneElement,
     x: &[Point3<f64>],
     f: &Matrix3<f64>,
 ) -> (Matrix3<f64>, bool) {
-    let p = tri.nodes.map(|n| x[n as usize]);
-    let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
-    let rest_twice_area = 2.0 * tri.measure_area();
-    let twice_area = cross.norm();
-    if twice_area > DEGENERATE_AREA * rest_twice_area {
-        let n = cross / twice_area;
-        (polar_rotation(&(f + n * tri.rest_normal.transpose())), true)
-    } else {
-        let n = tri.rest_normal;
-        (polar_rotation(&(f + n * n.transpose())), false)
+    match current_normal(tri, x) {
+        Some(n) => (polar_rotation(&(f + n * tri.rest_normal.transpose())), true),
+        None => {
+            let n = tri.rest_normal;
+            (polar_rotation(&(f + n * n.transpose())), false)
+        }
     }
 }
 

@@ -10,9 +10,9 @@ use rayon::prelude::*;
 use super::bending::{BendingHinge, HingeVectors};
 use super::element::CorotElement;
 use super::error::{ElementId, FemError};
-use super::membrane::membrane_rotation;
+use super::membrane::{membrane_admissible, membrane_rotation};
 use super::model::FemModel;
-use super::tet::tet_rotation;
+use super::tet::{tet_admissible, tet_rotation};
 
 /// Elements per rayon task: small enough to balance, large enough to amortise scheduling.
 const PAR_CHUNK: usize = 512;
@@ -203,6 +203,26 @@ impl CorotationalState {
 }
 
 /// Checks one finite position per node.
+/// The first element that an update at `x` would list as failed (tetrahedra first, as
+/// [`CorotationalState::failed_elements`] lists them), without computing any rotation or
+/// force: the cheap test of a trial step. `x` must be finite ([`check_positions`]).
+pub(crate) fn first_failure(model: &FemModel, x: &[Point3<f64>]) -> Option<ElementId> {
+    let tet = model
+        .tets
+        .par_iter()
+        .with_min_len(PAR_CHUNK)
+        .position_first(|e| !tet_admissible(&e.deformation(x)));
+    if let Some(i) = tet {
+        return Some(ElementId::Tet(i));
+    }
+    model
+        .membranes
+        .par_iter()
+        .with_min_len(PAR_CHUNK)
+        .position_first(|e| !membrane_admissible(e, x))
+        .map(ElementId::Membrane)
+}
+
 pub(crate) fn check_positions(model: &FemModel, x: &[Point3<f64>]) -> Result<(), FemError> {
     if x.len() != model.node_count() {
         return Err(FemError::LengthMismatch {

@@ -18,7 +18,7 @@ use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::pressure::PressureLoad;
-use super::state::CorotationalState;
+use super::state::{CorotationalState, check_positions, first_failure};
 
 /// A zero-rest-length spring pulling `node` towards `target` (mm) with `stiffness` (µN/mm):
 /// force k (target − x_node).
@@ -323,20 +323,22 @@ impl<'m> StaticSolver<'m> {
                     .zip(self.rhs.chunks_exact(3))
                     .map(|(p, d)| p + Vector3::new(d[0], d[1], d[2]) * alpha),
             );
-            self.state.update(self.model, &self.trial)?;
-            if self.state.failed_elements().is_empty() {
-                x.copy_from_slice(&self.trial);
-                let largest = self
-                    .rhs
-                    .chunks_exact(3)
-                    .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
-                    .fold(0.0, f64::max);
-                return Ok((largest, halvings));
+            // a rejected trial costs a determinant per element, not a state update
+            check_positions(self.model, &self.trial)?;
+            if let Some(failed) = first_failure(self.model, &self.trial) {
+                culprit = failed;
+                alpha *= 0.5;
+                continue;
             }
-            culprit = self.state.failed_elements()[0];
-            alpha *= 0.5;
+            self.state.update(self.model, &self.trial)?;
+            x.copy_from_slice(&self.trial);
+            let largest = self
+                .rhs
+                .chunks_exact(3)
+                .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
+                .fold(0.0, f64::max);
+            return Ok((largest, halvings));
         }
-        self.state.update(self.model, x)?;
         Err(FemError::StepRejected {
             iteration,
             halvings: max_halvings,

@@ -60,10 +60,15 @@ pub(crate) fn rest_tet(
 /// near it: the static and dynamic strains stay far below 1 %).
 pub const MIN_VOLUME_RATIO: f64 = 0.1;
 
-/// Rotation of the tetrahedron and whether it is admissible (det F > [`MIN_VOLUME_RATIO`]),
-/// from F.
+/// Whether a tetrahedron with deformation gradient F is admissible: det F >
+/// [`MIN_VOLUME_RATIO`].
+pub(crate) fn tet_admissible(f: &Matrix3<f64>) -> bool {
+    f.determinant() > MIN_VOLUME_RATIO
+}
+
+/// Rotation of the tetrahedron and whether it is admissible ([`tet_admissible`]), from F.
 pub(crate) fn tet_rotation(f: &Matrix3<f64>) -> (Matrix3<f64>, bool) {
-    (polar_rotation(f), f.determinant() > MIN_VOLUME_RATIO)
+    (polar_rotation(f), tet_admissible(f))
 }
 
 #[cfg(test)]
