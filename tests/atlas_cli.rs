@@ -545,7 +545,10 @@ fn the_sofa_chain_imports_into_a_usable_atlas() {
         part_size(&info, "connective"),
     );
     assert!((m - 11.48).abs() < 0.01, "malleus {m}");
-    assert!((i + s + stubs - 15.67).abs() < 0.01, "incus {i} + stapes {s} + stubs {stubs}");
+    assert!(
+        (i + s + stubs - 15.67).abs() < 0.01,
+        "incus {i} + stapes {s} + stubs {stubs}"
+    );
     assert!((0.40..=0.48).contains(&stubs), "stubs {stubs} mm³");
     assert!((1.0..=2.5).contains(&s), "stapes {s} mm³");
     assert!((10.0..=16.0).contains(&i), "incus {i} mm³");
