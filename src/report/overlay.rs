@@ -67,6 +67,11 @@ impl RgbImage {
             let mut encoder = png::Encoder::new(&mut out, self.width as u32, self.height as u32);
             encoder.set_color(png::ColorType::Rgb);
             encoder.set_depth(png::BitDepth::Eight);
+            // deflate level 1 with the per-row adaptive filter: on a real-chain case the
+            // report's slices take half the time of the default level (0.08 s instead of
+            // 0.15-0.2 s of one core) for a report 1.3 times larger (529 KB instead of 402 KB)
+            encoder.set_deflate_compression(png::DeflateCompression::Level(1));
+            encoder.set_filter(png::Filter::Adaptive);
             let mut writer = encoder.write_header()?;
             let flat: Vec<u8> = self.pixels.iter().flatten().copied().collect();
             writer.write_image_data(&flat)?;
