@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use super::Report;
+use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
 use crate::pipeline::batch::{BatchOptions, Outcome, run_batch};
@@ -104,6 +105,7 @@ pub fn run(
     progress: &dyn Reporter,
 ) -> Result<Report, Error> {
     let config = Config::load(config_path)?;
+    check_out_dir(&args.out)?;
     let cohort = read_cohort(&args.cohort)?;
     for skip in &cohort.skipped {
         progress.log(&format!(

@@ -6,6 +6,7 @@ mod batch;
 mod exit;
 mod inspect;
 mod landmarks;
+mod out_arg;
 mod package_arg;
 mod phantom;
 mod progress;
