@@ -34,6 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             resume: false,
             atlas: None,
             keep_phi: false,
+            child: None,
         };
         let t = std::time::Instant::now();
         let statuses = run_batch(&cohort, &opts, &config, &otoatlas::progress::Silent)?;

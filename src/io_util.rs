@@ -1,5 +1,6 @@
 //! Small file-system helpers shared by every writer: atomic writes (temporary sibling, then
-//! rename) so a crash never leaves a half-written output, and hashing.
+//! rename) so a crash never leaves a half-written output, and hashing; and, for the readers
+//! that walk folders following links, capped text reads and symbolic link loops.
 
 use std::fs;
 use std::io::Write;
@@ -22,6 +23,44 @@ pub fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FileError + '_ {
     move |source| FileError {
         path: path.to_path_buf(),
         source,
+    }
+}
+
+/// True if the symbolic link `link` under `root` never resolves (a chain of links that loops)
+/// or resolves to `root` or a folder above it: either would make anything that follows links
+/// through the folder (scanning a series, hashing a case's inputs) go round until the system
+/// refuses.
+pub fn is_link_loop(link: &Path, root: &Path) -> bool {
+    match fs::canonicalize(link) {
+        Ok(target) => fs::canonicalize(root).is_ok_and(|root| root.starts_with(&target)),
+        Err(e) => is_loop_error(&e),
+    }
+}
+
+/// True if `e` is the system's "too many levels of symbolic links" (ELOOP; std has no stable
+/// `ErrorKind` for it), as [`link_loop_error`] makes it too.
+pub fn is_loop_error(e: &std::io::Error) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        e.raw_os_error() == Some(rustix::io::Errno::LOOP.raw_os_error())
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = e;
+        false
+    }
+}
+
+/// The system's "too many levels of symbolic links" error, for a link loop found before the
+/// system would refuse it.
+pub fn link_loop_error() -> std::io::Error {
+    #[cfg(target_os = "linux")]
+    {
+        std::io::Error::from_raw_os_error(rustix::io::Errno::LOOP.raw_os_error())
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        std::io::Error::other("symbolic link loop")
     }
 }
 

@@ -385,3 +385,107 @@ fn resume_reruns_exactly_the_cases_that_changed() {
         (3, 0, 0)
     );
 }
+
+/// The default configuration with the mechanics validation off (a case then takes seconds).
+fn config_without_validation(dir: &Path) -> PathBuf {
+    let default =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline.toml"))
+            .unwrap();
+    let at = default.find("[validate]\n").unwrap();
+    let (head, tail) = default.split_at(at);
+    let changed = format!(
+        "{head}{}",
+        tail.replacen("\nenabled = true\n", "\nenabled = false\n", 1)
+    );
+    assert_ne!(changed, default);
+    let path = dir.join("pipeline.toml");
+    std::fs::write(&path, changed).unwrap();
+    path
+}
+
+#[test]
+fn a_case_killed_by_a_signal_fails_alone_and_resume_still_works() {
+    let dir = tempfile::tempdir().unwrap();
+    let cohort = dir.path().join("cohort");
+    copy_dir(&samples().join("case-001"), &cohort.join("a-small"));
+    // b-large: a valid NIfTI of 1024 x 1024 x 300 int16 voxels (a sparse file, no disk): its
+    // 600 MiB of voxels and their 1200 MiB as HU are within ingest.max_volume_mib, but not
+    // within the case's 1536 MiB of address space, and the allocation that fails aborts
+    let large = cohort.join("b-large");
+    std::fs::create_dir_all(&large).unwrap();
+    std::fs::copy(
+        samples().join("case-001/landmarks.fcsv"),
+        large.join("landmarks.fcsv"),
+    )
+    .unwrap();
+    let small = dir.path().join("small.nii");
+    let vol = otoatlas::image::Volume {
+        dims: [2, 2, 2],
+        spacing: [0.1; 3],
+        origin: nalgebra::Vector3::zeros(),
+        direction: nalgebra::Matrix3::identity(),
+        data: vec![0.0; 8],
+    };
+    otoatlas::image::nifti::write_nifti(&small, &vol, &[0i16; 8]).unwrap();
+    let mut header = std::fs::read(&small).unwrap();
+    header.truncate(352);
+    for (k, n) in [1024i16, 1024, 300].iter().enumerate() {
+        header[42 + 2 * k..44 + 2 * k].copy_from_slice(&n.to_le_bytes());
+    }
+    let image = large.join("image.nii");
+    std::fs::write(&image, &header).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&image)
+        .unwrap()
+        .set_len(352 + 1024 * 1024 * 300 * 2)
+        .unwrap();
+    let config = config_without_validation(dir.path());
+    let out = dir.path().join("out");
+    let batch = |extra: &[&str]| {
+        run(otoatlas()
+            .args([
+                "batch",
+                "--jobs",
+                "2",
+                "--case-memory-limit",
+                "1536",
+                "--out",
+            ])
+            .arg(&out)
+            .arg("--config")
+            .arg(&config)
+            .arg(&cohort)
+            .args(extra))
+    };
+    let o = batch(&[]);
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let summary = cohort_json(&out);
+    assert_eq!(summary["counts"]["ok"], 1, "{summary}");
+    assert_eq!(summary["counts"]["failed"], 1, "{summary}");
+    let failed = &summary["cases"][1];
+    assert_eq!(failed["id"], "b-large");
+    let error = failed["error"].as_str().unwrap();
+    for needle in [
+        "killed by signal 6 (SIGABRT",
+        "memory allocation of",
+        "--case-memory-limit 1536 MiB",
+    ] {
+        assert!(error.contains(needle), "{needle:?} in {error}");
+    }
+    let status: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("cases/b-large/status.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(status["outcome"], "failed");
+    assert_eq!(status["error"].as_str(), Some(error));
+    assert!(out.join("cases/a-small/package/manifest.json").is_file());
+    let html = std::fs::read_to_string(out.join("cohort.html")).unwrap();
+    assert!(
+        html.contains("b-large") && html.contains("SIGABRT"),
+        "{html}"
+    );
+    // resume: the finished case is kept, the killed one runs (and fails) again
+    assert_eq!(ran_resumed_failed(&batch(&["--resume"])), (0, 1, 1));
+    assert_eq!(cohort_json(&out)["counts"]["failed"], 1);
+}

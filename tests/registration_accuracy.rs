@@ -301,6 +301,20 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // the deviation maps also as VTK PolyData, as VTK itself reads them: the PLY's points,
+    // triangles and `quality` (which VTK's PLY reader drops) as point data `deviation_mm`
+    let deviation = out.join("registered/deviation");
+    if let Some(text) =
+        common::python::run_python("check_deviation_vtp.py", &[&deviation], &["vtk", "meshio"])
+    {
+        let read: Value = serde_json::from_str(text.trim()).unwrap();
+        let plys = std::fs::read_dir(&deviation)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().extension() == Some("ply".as_ref()))
+            .count();
+        assert_eq!(read["maps"], plys as u64, "{read}");
+        assert!(read["points"].as_u64().unwrap() > 1000, "{read}");
+    }
     // from score: the same registration, scored again
     let (code, again) = register(&case, &out, &["--from", "score"]);
     assert_eq!(code, 0, "{again}");

@@ -1175,28 +1175,71 @@ fn mutated_inputs_end_in_success_or_a_typed_error() {
 }
 
 /// `run --out` at a file, or where nothing can be written, was exit 1 (a failed case) after
-/// the first stage; it is bad usage (2), said before any work. (`/proc` stands for a
-/// read-only folder: nobody, root included, can create a folder there.)
+/// the first stage; `batch --out` so too, after every case had failed; `landmarks --out` after
+/// the image was read and every landmark typed. Each is bad usage (2), said before any work.
+/// (`/proc` stands for a read-only folder: nobody, root included, can create a folder there.)
 #[test]
 fn an_out_that_is_a_file_or_cannot_be_written_is_bad_usage() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("a-file");
     std::fs::write(&file, "x").unwrap();
     let case = common::root().join("sample_cases/case-002");
-    for (out, says) in [
-        (file.as_path(), "this is a file; expected an output folder"),
-        (Path::new("/proc/otoatlas-out"), "cannot write there ("),
-    ] {
+    let cohort = common::root().join("sample_cases");
+    let in_a_file = file.join("picks.fcsv");
+    let runs: [(&str, &Path, &Path, &str); 7] = [
+        (
+            "run",
+            &case,
+            &file,
+            "this is a file; expected an output folder",
+        ),
+        (
+            "run",
+            &case,
+            Path::new("/proc/otoatlas-out"),
+            "cannot write there (",
+        ),
+        (
+            "batch",
+            &cohort,
+            &file,
+            "this is a file; expected an output folder",
+        ),
+        (
+            "batch",
+            &cohort,
+            Path::new("/proc/otoatlas-out"),
+            "cannot write there (",
+        ),
+        (
+            "landmarks",
+            &case,
+            dir.path(),
+            "this is a folder; expected a file",
+        ),
+        ("landmarks", &case, &in_a_file, "a-file is not a folder"),
+        (
+            "landmarks",
+            &case,
+            Path::new("/proc/picks.fcsv"),
+            "cannot write there (",
+        ),
+    ];
+    for (command, input, out, says) in runs {
         let run = common::otoatlas(&[
             "--quiet",
-            "run",
-            case.to_str().unwrap(),
+            command,
+            input.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
         ]);
         let stderr = String::from_utf8_lossy(&run.stderr);
-        assert_eq!(run.status.code(), Some(2), "{stderr}");
-        assert!(stderr.contains(says), "{stderr}");
+        assert_eq!(
+            run.status.code(),
+            Some(2),
+            "{command} --out {out:?}: {stderr}"
+        );
+        assert!(stderr.contains(says), "{command} --out {out:?}: {stderr}");
         assert_eq!(message_fault(&stderr), None, "{stderr}");
     }
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");

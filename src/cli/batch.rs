@@ -7,9 +7,11 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use super::Report;
+use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
 use crate::pipeline::batch::{BatchOptions, Outcome, run_batch};
+use crate::pipeline::case_process::{CaseProcess, serve};
 use crate::pipeline::cohort::{Shard, read_cohort};
 use crate::pipeline::cohort_summary::{merge_cohort, write_case_list};
 use crate::pipeline::sbatch::{SbatchSpec, sbatch_script};
@@ -62,10 +64,23 @@ pub struct BatchArgs {
     /// packages' manifests; without it no output holds them.
     #[arg(long)]
     pub keep_phi: bool,
+    /// Address space each case's process may use, in MiB (RLIMIT_AS, as `ulimit -v`): a case
+    /// that needs more fails alone, named in the cohort report. A case needs about 1 GiB plus
+    /// 3 times its volume; default: no limit of its own.
+    #[arg(long, value_name = "MIB", value_parser = clap::value_parser!(u64).range(1..))]
+    pub case_memory_limit: Option<u64>,
     /// Print machine-readable JSON (cohort.json) on stdout.
     #[arg(long)]
     pub json: bool,
 }
+
+/// Runs one case of a batch in this process, as `batch` starts it: the job on stdin, its
+/// events and status on stdout (`pipeline::case_process`). Not for users.
+#[derive(Debug, Args)]
+pub struct CaseArgs {}
+
+/// The name of the hidden command a batch's case processes run.
+pub const CASE_COMMAND: &str = "__case";
 
 /// Merge the results of a batch's shards into OUT/cohort.json and the cohort report.
 #[derive(Debug, Args)]
@@ -90,6 +105,7 @@ pub fn run(
     progress: &dyn Reporter,
 ) -> Result<Report, Error> {
     let config = Config::load(config_path)?;
+    check_out_dir(&args.out)?;
     let cohort = read_cohort(&args.cohort)?;
     for skip in &cohort.skipped {
         progress.log(&format!(
@@ -126,6 +142,7 @@ pub fn run(
             config: config_abs.as_deref(),
             atlas: atlas_abs.as_deref(),
             keep_phi: args.keep_phi,
+            case_memory_limit_mib: args.case_memory_limit,
         });
         crate::io_util::write_atomic(script_path, script.as_bytes())?;
         return Ok(Report {
@@ -149,12 +166,22 @@ pub fn run(
         Some(s) => s.select(cases),
         None => cases,
     };
+    // every case in a child process of this executable: whatever ends it ends only that case
+    let program = std::env::current_exe().map_err(|source| Error::Io {
+        path: "otoatlas".into(),
+        source,
+    })?;
     let opts = BatchOptions {
         out: args.out.clone(),
         jobs,
         resume: args.resume,
         atlas: args.atlas.clone(),
         keep_phi: args.keep_phi,
+        child: Some(CaseProcess {
+            program,
+            args: vec![CASE_COMMAND.into()],
+            memory_limit_mib: args.case_memory_limit,
+        }),
     };
     let statuses = run_batch(&selected, &opts, &config, progress)?;
     let failed: Vec<_> = statuses
@@ -210,6 +237,16 @@ pub fn run(
         }
     };
     Ok(Report { text, json })
+}
+
+/// The hidden command: serves one job; exit 0 when it reported the case's status (whatever
+/// the case's outcome), 1 otherwise.
+pub fn case(_args: &CaseArgs) -> std::process::ExitCode {
+    if serve(std::io::stdin().lock(), std::io::stdout()) {
+        std::process::ExitCode::SUCCESS
+    } else {
+        std::process::ExitCode::from(super::exit::ExitStatus::CaseFailed as u8)
+    }
 }
 
 pub fn cohort_report(args: &CohortReportArgs) -> Result<Report, Error> {

@@ -56,6 +56,8 @@ pub fn exit_status(err: &Error) -> ExitStatus {
             crate::mechanics::MechanicsError::InvalidOption { .. } => ExitStatus::BadInput,
             _ => ExitStatus::CaseFailed,
         },
+        // a symbolic link loop among the inputs (a case's segmentation/, say) is the input's
+        Error::Io { source, .. } if crate::io_util::is_loop_error(source) => ExitStatus::BadInput,
         Error::Io { .. } | Error::MeshDev(_) | Error::Report { .. } => ExitStatus::CaseFailed,
     }
 }
@@ -81,5 +83,9 @@ mod tests {
         assert_eq!(exit_status(&io), ExitStatus::CaseFailed);
         let usage = Error::Usage("--jobs 0".into());
         assert_eq!(exit_status(&usage), ExitStatus::BadInput);
+        let link_loop = Error::from(crate::io_util::io_err(std::path::Path::new("seg/x"))(
+            crate::io_util::link_loop_error(),
+        ));
+        assert_eq!(exit_status(&link_loop), ExitStatus::BadInput);
     }
 }

@@ -7,6 +7,7 @@ use clap::Args;
 use serde_json::json;
 
 use super::Report;
+use super::out_arg::check_out_file;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::{Side, write_fcsv, write_json};
@@ -65,6 +66,8 @@ pub fn run(
 ) -> Result<Report, Error> {
     let config = Config::load(config)?;
     let case = Case::open(&args.case)?;
+    let (fcsv, json_path) = out_paths(args, &case);
+    check_out_file(&fcsv)?;
     let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
     let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
@@ -100,7 +103,6 @@ pub fn run(
     for warning in &warnings {
         progress.log(&format!("landmark warning: {warning}"));
     }
-    let (fcsv, json_path) = out_paths(args, &case);
     write_atomic(&fcsv, write_fcsv(&input).as_bytes())?;
     write_atomic(&json_path, write_json(&input, side).as_bytes())?;
     progress.log(&format!(

@@ -6,6 +6,7 @@ mod batch;
 mod exit;
 mod inspect;
 mod landmarks;
+mod out_arg;
 mod package_arg;
 mod phantom;
 mod progress;
@@ -50,6 +51,9 @@ pub enum Command {
     Validate(validate::ValidateArgs),
     Simulate(simulate::SimulateArgs),
     Verify(verify::VerifyArgs),
+    /// One case of a batch, in the process `batch` starts for it.
+    #[command(name = batch::CASE_COMMAND, hide = true)]
+    Case(batch::CaseArgs),
 }
 
 /// What a command hands back: text for a person, JSON for a script. A JSON object with
@@ -80,6 +84,7 @@ pub fn main() -> ExitCode {
         Command::Validate(a) => a.json,
         Command::Simulate(a) => a.json,
         Command::Verify(a) => a.json,
+        Command::Case(_) => false,
     };
     let terminal = Terminal::new(cli.quiet);
     let result = match &cli.command {
@@ -93,6 +98,7 @@ pub fn main() -> ExitCode {
         Command::Validate(a) => validate::run(a, &terminal),
         Command::Simulate(a) => simulate::run(a),
         Command::Verify(a) => verify::run(a),
+        Command::Case(a) => return batch::case(a),
     };
     match result {
         Ok(report) => {

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use super::Report;
+use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::Side;
@@ -21,7 +22,7 @@ use crate::progress::Reporter;
 last; its files are described in docs/package-format.md; check it with `otoatlas verify
 OUT/package`), package.log.json, report.html, metrics.json, mechanics.json (with [validate]),
 timings.json, registered/surfaces/*.ply, registered/volume.vtu,
-registered/landmarks.{json,fcsv}, registered/deviation/*.ply (with a segmentation), and
+registered/landmarks.{json,fcsv}, registered/deviation/*.{ply,vtp} (with a segmentation), and
 stages/ (one artefact per stage, for --from). No DICOM patient field is written unless
 --keep-phi is given.
 
@@ -64,7 +65,7 @@ pub fn run(
 ) -> Result<Report, Error> {
     let config = Config::load(config)?;
     let case = Case::open(&args.case)?;
-    check_out(&args.out)?;
+    check_out_dir(&args.out)?;
     let opts = RunOptions {
         out: args.out.clone(),
         from: args.from,
@@ -124,26 +125,4 @@ pub fn run(
         text,
         json: serde_json::to_value(&summary.metrics).unwrap_or_default(),
     })
-}
-
-/// `--out` must be a folder (new, or a previous run's) this process can write in: a file
-/// there, or a folder it cannot create or write, is bad usage (exit 2) found before the first
-/// stage, not a failed case after minutes of work.
-fn check_out(out: &Path) -> Result<(), Error> {
-    if out.exists() && !out.is_dir() {
-        return Err(Error::Usage(format!(
-            "--out {}: this is a file; expected an output folder (new, or a previous run's)",
-            out.display()
-        )));
-    }
-    let unwritable = |e: std::io::Error| {
-        Error::Usage(format!(
-            "--out {}: cannot write there ({e}); expected a folder you can write in",
-            out.display()
-        ))
-    };
-    std::fs::create_dir_all(out).map_err(unwritable)?;
-    let probe = out.join(format!(".otoatlas-write-test.{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(unwritable)?;
-    std::fs::remove_file(&probe).map_err(unwritable)
 }

@@ -8,11 +8,12 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use crate::io_util::{FileError, io_err, sha256_hex};
+use crate::io_util::{FileError, io_err, is_link_loop, link_loop_error, sha256_hex};
 
 /// Every regular file under `dir` (recursively, following links), as paths relative to `dir`
 /// with `/` separators, sorted, each with the SHA-256 of its bytes. A file `dir` itself gives
-/// one entry named after it.
+/// one entry named after it. A link that loops, or leads back to `dir` or above it, is an
+/// error naming it (`io_util::is_loop_error` tells it), found before the walk goes round.
 pub fn file_digests(dir: &Path) -> Result<BTreeMap<String, String>, FileError> {
     if dir.is_file() {
         let name = dir
@@ -62,6 +63,13 @@ fn walk(dir: &Path, follow_links: bool) -> Result<Listing, FileError> {
             let entry = entry.map_err(io_err(&folder))?;
             let path = entry.path();
             let rel = format!("{prefix}{}", entry.file_name().to_string_lossy());
+            let is_link = entry.file_type().is_ok_and(|t| t.is_symlink());
+            if follow_links && is_link && is_link_loop(&path, &folder) {
+                return Err(FileError {
+                    path,
+                    source: link_loop_error(),
+                });
+            }
             let meta = if follow_links {
                 std::fs::metadata(&path)
             } else {
@@ -129,5 +137,34 @@ mod tests {
         let before = all(&d);
         std::fs::rename(dir.path().join("top"), dir.path().join("top2")).unwrap();
         assert_ne!(all(&file_digests(dir.path()).unwrap()), before);
+    }
+
+    /// A segmentation folder with a link back to itself was walked until the system refused
+    /// (ELOOP after 40 levels, exit 1 after the whole run); a link that loops on itself so
+    /// too. Both are the link's error, found at once, that `cli::exit` calls bad input.
+    #[test]
+    fn a_link_loop_is_named_not_walked() {
+        for target in [".", "..", "../../seg", "self"] {
+            let dir = tempfile::tempdir().unwrap();
+            let seg = dir.path().join("seg");
+            std::fs::create_dir_all(seg.join("sub")).unwrap();
+            std::fs::write(seg.join("incus.ply"), b"ply").unwrap();
+            std::os::unix::fs::symlink(target, seg.join("sub/self")).unwrap();
+            let err = file_digests(&seg).unwrap_err();
+            assert_eq!(err.path, seg.join("sub/self"), "{target}: {err}");
+            assert!(
+                crate::io_util::is_loop_error(&err.source),
+                "{target}: {err}"
+            );
+            assert!(err.to_string().contains("symbolic links"), "{err}");
+        }
+        // a link to a folder elsewhere is followed
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("elsewhere")).unwrap();
+        std::fs::write(dir.path().join("elsewhere/stapes.ply"), b"ply").unwrap();
+        std::fs::create_dir_all(dir.path().join("seg")).unwrap();
+        std::os::unix::fs::symlink("../elsewhere", dir.path().join("seg/linked")).unwrap();
+        let d = file_digests(&dir.path().join("seg")).unwrap();
+        assert_eq!(d.keys().collect::<Vec<_>>(), ["linked/stapes.ply"]);
     }
 }

@@ -1,19 +1,22 @@
 //! `batch`: a cohort of cases through `run`, in parallel, each into `DIR/cases/ID/`.
 //!
-//! A failing case (an error or a panic) does not stop the others: its error is recorded in
-//! its `status.json` and in the cohort report. Cases run on a pool of `jobs` threads and the
-//! parallel loops inside a case (probing, assembly, distances) run on the same pool, so the
-//! machine is never oversubscribed. `--resume` skips the cases whose package is already there,
-//! verifies, and was made from the same inputs, configuration and atlas (by SHA-256).
+//! A failing case does not stop the others: its error is recorded in its `status.json` and in
+//! the cohort report. With [`BatchOptions::child`] (as the command line runs it) each case runs
+//! in a child process (`case_process`), so that even an abort, a segmentation fault or an
+//! out-of-memory kill is only that case's failure, named by its signal; `jobs` children run at
+//! once and share the `jobs` threads. In-process, cases run on a pool of `jobs` threads shared
+//! with the parallel loops inside a case (probing, assembly, distances), and a panic is the
+//! case's failure. Either way the machine is never oversubscribed. `--resume` skips the cases
+//! whose package is already there, verifies, and was made from the same inputs, configuration
+//! and atlas (by SHA-256).
 
-use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
-use super::{Case, RunOptions, Stage, run_case};
+use super::case_process::{CaseProcess, run_here, run_in_child};
+pub use super::case_process::{CaseStatus, Outcome};
+use super::{Case, RunOptions, Stage};
 use crate::Error;
 use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
@@ -32,27 +35,8 @@ pub struct BatchOptions {
     pub atlas: Option<PathBuf>,
     /// Keep the DICOM patient fields in the packages (`run --keep-phi`).
     pub keep_phi: bool,
-}
-
-/// How one case of the cohort ended, as `DIR/cases/ID/status.json` records it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CaseStatus {
-    pub id: String,
-    pub outcome: Outcome,
-    /// The error of a failed case.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error: Option<String>,
-    /// Wall time of the run \[s\] (0 for a case skipped by `--resume`).
-    pub seconds: f64,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Outcome {
-    Ok,
-    Failed,
-    /// Skipped by `--resume`: the case's outputs were already complete and current.
-    Resumed,
+    /// Run each case in a child process started so; none: in this process.
+    pub child: Option<CaseProcess>,
 }
 
 /// The folder of case `id` in the batch output `out`.
@@ -72,8 +56,13 @@ pub fn run_batch(
     config: &Config,
     progress: &dyn Reporter,
 ) -> Result<Vec<CaseStatus>, Error> {
+    // children share the threads: as many at once as there are cases or threads, each with
+    // its share of the threads
+    let jobs = opts.jobs.max(1);
+    let at_once = jobs.min(cases.len().max(1));
+    let child_threads = (jobs / at_once).max(1);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.jobs.max(1))
+        .num_threads(if opts.child.is_some() { at_once } else { jobs })
         .build()
         .map_err(|e| Error::Usage(format!("--jobs {}: {e}", opts.jobs)))?;
     progress.cohort_started(cases.len() as u64);
@@ -81,7 +70,7 @@ pub fn run_batch(
         cases
             .par_iter()
             .map(|case| {
-                let status = run_one(case, opts, config, progress);
+                let status = run_one(case, opts, config, child_threads, progress);
                 let outcome = match (&status.outcome, &status.error) {
                     (Outcome::Failed, Some(e)) => format!("FAILED: {e}"),
                     (Outcome::Resumed, _) => "complete already, skipped (--resume)".into(),
@@ -100,6 +89,7 @@ fn run_one(
     case: &Case,
     opts: &BatchOptions,
     config: &Config,
+    child_threads: usize,
     progress: &dyn Reporter,
 ) -> CaseStatus {
     let out = case_dir(&opts.out, &case.id);
@@ -128,40 +118,17 @@ fn run_one(
         };
     }
     progress.case_started(&case.id);
-    let started = Instant::now();
     let run_opts = RunOptions {
-        out: out.clone(),
+        out,
         from: Stage::Ingest,
         landmarks: None,
         atlas: opts.atlas.clone(),
         side: None,
         keep_phi: opts.keep_phi,
     };
-    // a panic in one case is that case's failure, never the cohort's
-    let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-        run_case(case, &run_opts, config, progress)
-    }));
-    let error = match result {
-        Ok(Ok(_)) => None,
-        Ok(Err(e)) => Some(e.to_string()),
-        Err(panic) => Some(format!(
-            "internal error (please report): {}",
-            panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("panic")
-        )),
-    };
-    let status = CaseStatus {
-        id: case.id.clone(),
-        outcome: if error.is_some() {
-            Outcome::Failed
-        } else {
-            Outcome::Ok
-        },
-        error,
-        seconds: started.elapsed().as_secs_f64(),
+    let status = match &opts.child {
+        Some(process) => run_in_child(process, case, &run_opts, config, child_threads, progress),
+        None => run_here(case, &run_opts, config, progress),
     };
     if let Err(e) = write_status(&opts.out, &status) {
         progress.log(&format!("{}: cannot record its status: {e}", case.id));

@@ -1,8 +1,9 @@
 //! The pipeline: the case folder, the stages of `run` with their artefacts and timings, the
-//! scoring against a manual segmentation, and cohorts (`batch`, shards, Slurm arrays).
+//! scoring against a manual segmentation, and cohorts (`batch`, each case in a child process, shards, Slurm arrays).
 
 pub mod batch;
 pub mod case;
+pub mod case_process;
 pub mod cohort;
 pub mod cohort_summary;
 mod error;

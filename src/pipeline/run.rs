@@ -31,7 +31,7 @@ use crate::image::{self, ImageRecord, LoadedImage, Sampler};
 use crate::io_util::{write_atomic, write_json_file};
 use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
-use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
+use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
 use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
 use crate::register::atlas_fit::{
@@ -643,7 +643,7 @@ fn scores_of(
 }
 
 /// The registered atlas's surfaces, volume and landmarks, and each scored structure's
-/// deviation map, under `OUT/registered/`.
+/// deviation map (PLY and VTP), under `OUT/registered/`.
 fn export(
     cx: Context,
     atlas: &Atlas,
@@ -668,7 +668,15 @@ fn export(
                 colors: Some(s.colours.clone()),
             };
             write_ply(&path, &s.surface, &attrs)?;
+            // the same map for VTK and ParaView, whose PLY reader drops `quality`
+            let vtp = path.with_extension("vtp");
+            write_vtp(
+                &vtp,
+                &s.surface,
+                &[("deviation_mm", s.deviation.as_slice())],
+            )?;
             files.push(path);
+            files.push(vtp);
         }
     }
     let record = ExportRecord {

@@ -20,6 +20,8 @@ pub struct SbatchSpec<'a> {
     pub atlas: Option<&'a Path>,
     /// Pass `--keep-phi` to every task.
     pub keep_phi: bool,
+    /// Pass `--case-memory-limit` to every task \[MiB\].
+    pub case_memory_limit_mib: Option<u64>,
 }
 
 /// Quotes `text` for a POSIX shell.
@@ -48,6 +50,9 @@ pub fn sbatch_script(spec: &SbatchSpec) -> String {
     }
     if spec.keep_phi {
         command.push_str(" --keep-phi");
+    }
+    if let Some(mib) = spec.case_memory_limit_mib {
+        command.push_str(&format!(" --case-memory-limit {mib}"));
     }
     let merge = format!("{} cohort-report {}", quoted(spec.exe), quoted(spec.out));
     let logs = spec.out.join("slurm");

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use super::tags as attr;
 use crate::image::ImageError;
+use crate::io_util::is_link_loop;
 
 /// Modality rescale of one frame: `HU = slope · stored + intercept`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,27 +118,6 @@ pub fn list_files(root: &Path) -> Result<Vec<PathBuf>, ImageError> {
     }
     out.sort();
     Ok(out)
-}
-
-/// True if the symbolic link `link` under `root` never resolves (a chain of links that loops)
-/// or resolves to `root` or a folder above it: either would make anything that follows links
-/// through the folder (hashing a case's inputs) go round until the system refuses.
-fn is_link_loop(link: &Path, root: &Path) -> bool {
-    match fs::canonicalize(link) {
-        Ok(target) => fs::canonicalize(root).is_ok_and(|root| root.starts_with(&target)),
-        Err(e) => {
-            // ELOOP: on Linux, 40 (std has no stable ErrorKind for it)
-            #[cfg(target_os = "linux")]
-            {
-                e.raw_os_error() == Some(rustix::io::Errno::LOOP.raw_os_error())
-            }
-            #[cfg(not(target_os = "linux"))]
-            {
-                let _ = e;
-                false
-            }
-        }
-    }
 }
 
 /// True if the file carries the DICM marker of a DICOM Part 10 file.

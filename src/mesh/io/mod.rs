@@ -1,5 +1,5 @@
 //! Mesh file formats, read and write: PLY, STL and OBJ surfaces, VTU (VTK XML) and Gmsh MSH
-//! 2.2 volumes. Every reader reports the file, the line or field and what was expected, and
+//! 2.2 volumes; VTP (VTK XML PolyData) surfaces with point data are written only. Every reader reports the file, the line or field and what was expected, and
 //! never panics on bad input; every writer writes atomically (temporary sibling + rename).
 
 pub mod gmsh;

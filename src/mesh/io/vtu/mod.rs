@@ -1,11 +1,15 @@
 //! VTK XML UnstructuredGrid (`.vtu`, VTK file formats 1.0): write tets (cell type 10) and
 //! triangles (type 5) with an Int32 `region` cell array and any Float64 cell arrays, as ASCII or
 //! inline base64 binary (UInt64 byte-count header and data encoded as one block, uncompressed);
-//! read ASCII or inline base64 files of tets and triangles (any numeric array types).
+//! read ASCII or inline base64 files of tets and triangles (any numeric array types). Also the
+//! VTK XML PolyData writer (`.vtp`, `polydata`) for surfaces with point data, through the same
+//! `DataArray` writer.
 
+mod polydata;
 mod read;
 mod write;
 
+pub use polydata::{vtp_string, write_vtp};
 pub use read::{parse_vtu, read_vtu, read_vtu_tets};
 pub use write::{vtu_string, write_vtu};
 

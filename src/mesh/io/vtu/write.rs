@@ -9,7 +9,7 @@ use base64::engine::general_purpose::STANDARD;
 use super::{VTK_TETRA, VTK_TRIANGLE, VtuEncoding};
 use crate::mesh::io::{CellArray, MeshIoError, VolumeMesh, write_bytes};
 
-enum Data<'a> {
+pub(super) enum Data<'a> {
     F64(&'a [f64]),
     I64(&'a [i64]),
     I32(&'a [i32]),
@@ -52,14 +52,20 @@ impl Data<'_> {
     }
 }
 
-fn escape(s: &str) -> String {
+pub(super) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
 
-fn data_array(out: &mut String, name: &str, components: usize, data: Data, encoding: VtuEncoding) {
+pub(super) fn data_array(
+    out: &mut String,
+    name: &str,
+    components: usize,
+    data: Data,
+    encoding: VtuEncoding,
+) {
     let format = match encoding {
         VtuEncoding::Ascii => "ascii",
         VtuEncoding::Base64 => "binary",
