@@ -1,4 +1,5 @@
-//! `otoatlas simulate` end to end: the trajectory file, the JSON report, bad options.
+//! `otoatlas simulate` end to end: the trajectory file, the JSON report, a pathology, bad
+//! options.
 //! `validate` (its numbers are exercised by the library tests): the progress it logs when
 //! stderr is not a terminal, and its refusal of a bad option.
 
@@ -31,6 +32,31 @@ fn simulate_writes_the_umbo_trajectory() {
     // canal pressure pushes the umbo medially, toward the 500 Pa static value (78.9 µm)
     assert!(last[1] > 0.0 && last[1] < 0.0790, "{}", last[1]);
     assert_eq!(json["final_umbo_medial_mm"].as_f64().unwrap(), last[1]);
+}
+
+/// `--condition stapes-fixation` steps the fixed ear: under 1 kPa its umbo settles on the
+/// fixed ear's static value (56.24 µm, `otoatlas validate --condition stapes-fixation`), not
+/// the normal ear's (89.76 µm); the JSON says which ear it stepped.
+#[test]
+fn simulate_steps_the_ear_of_the_condition() {
+    let final_umbo = |condition: &str| {
+        let (code, json) = otoatlas_json(&[
+            "simulate",
+            "--steps",
+            "8",
+            "--pressure",
+            "1000",
+            "--condition",
+            condition,
+        ]);
+        assert_eq!(code, 0, "{json}");
+        assert_eq!(json["condition"], condition, "{json}");
+        json["final_umbo_medial_mm"].as_f64().unwrap()
+    };
+    let (normal, fixed) = (final_umbo("normal"), final_umbo("stapes-fixation"));
+    println!("umbo after 8 steps at 1 kPa: normal {normal} mm, stapes fixation {fixed} mm");
+    assert!((0.085..0.0900).contains(&normal), "{normal}");
+    assert!((0.053..0.0565).contains(&fixed), "{fixed}");
 }
 
 #[test]

@@ -28,7 +28,7 @@ use crate::progress::{Reporter, Task};
 pub const GATE_PRESSURES_PA: [f64; 6] = [-4000.0, -2000.0, -1000.0, 1000.0, 2000.0, 4000.0];
 
 /// Default `UdspOptions::residual_tolerance`.
-const RESIDUAL_TOLERANCE: f64 = 1e-4;
+const RESIDUAL_TOLERANCE: f64 = 1e-3;
 
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
