@@ -7,7 +7,7 @@
 use crate::common::BoxMesh;
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
-    CorotationalState, Elements, FemModel, FixedDofs, MembraneMaterial, SparseCholesky,
+    CorotationalState, Dashpot, Elements, FemModel, FixedDofs, MembraneMaterial, SparseCholesky,
     SparsePattern, StepOperator, TetMaterial,
 };
 
@@ -173,7 +173,8 @@ fn fixed_dofs_are_projected_and_cholesky_solves() {
 }
 
 /// The matrix-free product of `StepOperator` equals the assembled matrix (warped tangent,
-/// tensile stress stiffness, node diagonal, projected fixed DOFs) times the vector, at a
+/// tensile stress stiffness, node diagonal, directional dashpots (one on a fixed node),
+/// projected fixed DOFs) times the vector, at a
 /// stretched, sheared and rotated state where the membrane is partly in tension and partly
 /// in compression.
 #[test]
@@ -199,6 +200,15 @@ fn matrix_free_step_operator_equals_the_assembled_matrix() {
     assert!(state.failed_elements().is_empty());
     let fixed = FixedDofs::from_nodes(x.len(), &mesh.nodes_on_plane(0, 0.0)).unwrap();
     let diag: Vec<f64> = (0..x.len()).map(|v| 3.0 + 0.5 * v as f64).collect();
+    let fixed_node = mesh.nodes_on_plane(0, 0.0)[0];
+    let dashpots: Vec<Dashpot> = [1, x.len() as u32 / 2, x.len() as u32 - 1, fixed_node]
+        .iter()
+        .map(|&node| Dashpot {
+            node,
+            coefficient: 7.0 + node as f64,
+            direction: Vector3::new(0.3, -0.4, 0.5 + 0.01 * node as f64).normalize(),
+        })
+        .collect();
     let scale = 0.04 * 0.0401;
     let pattern = SparsePattern::new(&model);
     let mut values = pattern.zero_values();
@@ -207,6 +217,9 @@ fn matrix_free_step_operator_equals_the_assembled_matrix() {
         .unwrap();
     pattern
         .add_membrane_stress_stiffness(&model, &x, &state, scale, &fixed, &mut values)
+        .unwrap();
+    pattern
+        .add_dashpots(&dashpots, &fixed, &mut values)
         .unwrap();
     let a = dense(&pattern, &values);
     let mut operator = StepOperator::new(&model);
@@ -218,7 +231,7 @@ fn matrix_free_step_operator_equals_the_assembled_matrix() {
             .collect();
         let mut y = vec![0.0; n];
         operator
-            .apply(&model, &state, scale, &diag, &fixed, &p, &mut y)
+            .apply(&model, &state, scale, &diag, &dashpots, &fixed, &p, &mut y)
             .unwrap();
         let want = &a * DVector::from_vec(p);
         let err = (DVector::from_vec(y) - &want).norm();

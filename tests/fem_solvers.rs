@@ -71,6 +71,63 @@ fn spring_on_single_tet_matches_linear_elasticity() {
     assert_eq!(&x[..3], &rest[..3]);
 }
 
+/// A tangent shift 1e3 × the stiffness makes every update ~1e-3 of the remaining error: judged
+/// on the update alone, the solve stops after one iteration at 1e-3 of the answer; judged on
+/// the out-of-balance force too (1e-6 of the load), it goes on to the equilibrium.
+#[test]
+fn static_equilibrium_is_judged_on_the_residual_too() {
+    let (rest, model) = unit_tet();
+    let fixed = || FixedDofs::from_nodes(4, &[0, 1, 2]).unwrap();
+    let (k, d) = (10.0, Vector3::new(0.0, 0.0, 1e-3));
+    let spring = Spring {
+        node: 3,
+        target: rest[3] + d,
+        stiffness: k,
+    };
+    let options = StaticOptions {
+        tolerance_mm: 1e-6,
+        tangent_shift: 1e3 * (apex_stiffness().z + k),
+        max_iterations: 50_000,
+        ..StaticOptions::default()
+    };
+    let expected = k * d.z / (apex_stiffness().z + k);
+    let mut x = rest.clone();
+    let update_only = StaticSolver::new(&model, fixed())
+        .unwrap()
+        .solve_with_springs(&mut x, &[spring], &options)
+        .unwrap();
+    println!("update only: {update_only:?}, u = {:e}", x[3].z - 1.0);
+    assert_eq!(update_only.iterations, 1);
+    assert!(update_only.relative_residual > 0.99);
+    assert!((x[3].z - 1.0) < 2e-3 * expected);
+    let mut x = rest.clone();
+    let judged = StaticSolver::new(&model, fixed())
+        .unwrap()
+        .with_residual_tolerance(1e-6)
+        .unwrap()
+        .solve_with_springs(&mut x, &[spring], &options)
+        .unwrap();
+    println!("with the residual: {judged:?}, u = {:e}", x[3].z - 1.0);
+    assert!(judged.relative_residual <= 1e-6);
+    assert!(((x[3].z - 1.0) - expected).abs() <= 1e-5 * expected);
+    let short = StaticOptions {
+        max_iterations: 100,
+        ..options
+    };
+    let mut x = rest.clone();
+    match StaticSolver::new(&model, fixed())
+        .unwrap()
+        .with_residual_tolerance(1e-6)
+        .unwrap()
+        .solve_with_springs(&mut x, &[spring], &short)
+    {
+        Err(FemError::NotConverged {
+            relative_residual, ..
+        }) => assert!(relative_residual > 0.9),
+        other => panic!("expected NotConverged, got {other:?}"),
+    }
+}
+
 #[test]
 fn large_spring_pull_converges_without_inversion() {
     let (rest, model) = unit_tet();

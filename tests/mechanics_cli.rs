@@ -1,4 +1,5 @@
-//! `otoatlas simulate` end to end: the trajectory file, the JSON report, bad options.
+//! `otoatlas simulate` end to end: the trajectory file, the JSON report, a pathology, bad
+//! options.
 //! `validate` (its numbers are exercised by the library tests): the progress it logs when
 //! stderr is not a terminal, and its refusal of a bad option.
 
@@ -33,6 +34,31 @@ fn simulate_writes_the_umbo_trajectory() {
     assert_eq!(json["final_umbo_medial_mm"].as_f64().unwrap(), last[1]);
 }
 
+/// `--condition stapes-fixation` steps the fixed ear: under 1 kPa its umbo settles on the
+/// fixed ear's static value (56.24 µm, `otoatlas validate --condition stapes-fixation`), not
+/// the normal ear's (89.76 µm); the JSON says which ear it stepped.
+#[test]
+fn simulate_steps_the_ear_of_the_condition() {
+    let final_umbo = |condition: &str| {
+        let (code, json) = otoatlas_json(&[
+            "simulate",
+            "--steps",
+            "8",
+            "--pressure",
+            "1000",
+            "--condition",
+            condition,
+        ]);
+        assert_eq!(code, 0, "{json}");
+        assert_eq!(json["condition"], condition, "{json}");
+        json["final_umbo_medial_mm"].as_f64().unwrap()
+    };
+    let (normal, fixed) = (final_umbo("normal"), final_umbo("stapes-fixation"));
+    println!("umbo after 8 steps at 1 kPa: normal {normal} mm, stapes fixation {fixed} mm");
+    assert!((0.085..0.0900).contains(&normal), "{normal}");
+    assert!((0.053..0.0565).contains(&fixed), "{fixed}");
+}
+
 #[test]
 fn simulate_rejects_a_bad_time_step() {
     let out = otoatlas(&["simulate", "--steps", "2", "--dt", "0", "--quiet"]);
@@ -58,7 +84,10 @@ fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr),
     );
-    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    // exit 1 when a gate fails: the default atlas fails the 250-500 Hz slope
+    // (docs/mechanics.md, "Dashpot along the footplate normal")
+    assert!(stdout.contains("FAIL slope 250-500 Hz"), "{stdout}");
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
     // as many frequencies and pressures as the report lists ("... deg" rows; "... um" rows but
     // the 0 Pa one)
     let frequencies = stdout

@@ -11,14 +11,15 @@ use super::Report;
 use super::package_arg::open_package;
 use crate::Error;
 use crate::atlas::load_atlas;
-use crate::mechanics::MechanicalSystem;
 use crate::mechanics::simulate::{SimulationOptions, simulate};
+use crate::mechanics::{Condition, MechanicalSystem};
 
 /// Step a patient package or an atlas in time and write the umbo trajectory.
 #[derive(Debug, Args)]
 #[command(after_help = "Examples:
   otoatlas simulate --steps 500 --pressure 2000 --out umbo.csv
   otoatlas simulate out/case-001/package --steps 300 --out umbo.csv
+  otoatlas simulate --condition stapes-fixation --out umbo.csv
   otoatlas simulate --atlas patient-atlas --dt 0.01 --umbo-force 500 --out umbo.json")]
 pub struct SimulateArgs {
     /// A patient package (OUT/package of a run), verified before it is stepped.
@@ -27,6 +28,10 @@ pub struct SimulateArgs {
     /// An atlas folder; default (no PACKAGE either): the embedded atlas.
     #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
+    /// The ear's condition: a pathology made from the atlas or package (docs/mechanics.md,
+    /// "Pathologies").
+    #[arg(long, value_enum, default_value_t = Condition::Normal)]
+    pub condition: Condition,
     /// Number of time steps.
     #[arg(long, default_value_t = 250)]
     pub steps: usize,
@@ -62,7 +67,7 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
         Some(dir) => open_package(dir)?.atlas,
         None => load_atlas(args.atlas.as_deref(), None)?,
     };
-    let system = MechanicalSystem::new(&atlas, atlas.nodes())?;
+    let system = MechanicalSystem::new(&args.condition.apply(&atlas)?, atlas.nodes())?;
     let options = SimulationOptions {
         steps: args.steps,
         dt: args.dt,
@@ -130,6 +135,7 @@ pub fn run(args: &SimulateArgs) -> Result<Report, Error> {
         let _ = writeln!(text, "wrote {}", p.display());
     }
     let json = serde_json::json!({
+        "condition": args.condition,
         "steps": args.steps,
         "dt_s": args.dt,
         "frames_per_second": sim.frames_per_second,

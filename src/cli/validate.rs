@@ -11,7 +11,7 @@ use super::Report;
 use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::load_atlas;
-use crate::mechanics::{Drive, ValidationOptions, validate_atlas, validate_package};
+use crate::mechanics::{Condition, Drive, ValidationOptions, validate_atlas, validate_package};
 use crate::progress::Reporter;
 use crate::report::mechanics_plots::validation_plots;
 
@@ -24,6 +24,7 @@ use crate::report::mechanics_plots::validation_plots;
   otoatlas validate --atlas my-atlas                 # another atlas, literature gates
   otoatlas validate out/p/package --reference my-atlas   # a package of my-atlas
   otoatlas validate --drive umbo --json
+  otoatlas validate --condition stapes-fixation      # otosclerosis: fails the normal bands
 
 Exit codes: 0 every gate passed, 1 a gate failed (the report says which), 2 bad input.")]
 pub struct ValidateArgs {
@@ -39,6 +40,10 @@ pub struct ValidateArgs {
     /// "default" = the embedded one. Gates relative to it instead of the literature bands.
     #[arg(long, value_name = "DIR")]
     pub reference: Option<PathBuf>,
+    /// The ear's condition: a pathology made from the atlas (docs/mechanics.md,
+    /// "Pathologies"); the literature gates are those of a normal ear, which it should fail.
+    #[arg(long, value_enum, default_value_t = Condition::Normal)]
+    pub condition: Condition,
     /// Where the sound drives the ear.
     #[arg(long, value_enum, default_value_t = Drive::Eardrum)]
     pub drive: Drive,
@@ -59,6 +64,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     let mut options = ValidationOptions::default();
     options.tfa.drive = args.drive;
     options.eardrum_bending_mm = args.eardrum_bending;
+    options.condition = args.condition;
     let reference_dir = args
         .reference
         .as_deref()
@@ -105,6 +111,13 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     }
     let m = &validation.mechanics;
     let mut text = String::new();
+    if validation.condition != Condition::Normal {
+        let _ = writeln!(
+            text,
+            "condition: {:?} (the literature gates are a normal ear's)",
+            validation.condition
+        );
+    }
     let _ = writeln!(
         text,
         "transfer function (stapes piston velocity / {:?} drive of {} Pa):",
@@ -160,6 +173,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     let _ = writeln!(text, "{}", if v.passed { "PASSED" } else { "FAILED" });
     let json = serde_json::json!({
         "passed": v.passed,
+        "condition": validation.condition,
         "verdict": v,
         "mechanics": m,
         "reference": validation.reference,

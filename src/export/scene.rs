@@ -230,7 +230,7 @@ pub fn scene_string(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<String, Expo
         s,
         "        <!-- cochlear load: dashpot (g/s) per point and axis, nonzero on the footplate -->\n        \
          <DiagonalVelocityDampingForceField name=\"cochlearLoad\" dampingCoefficient=\"{}\"/>",
-        join(system.node_dashpot.iter().flat_map(|&c| [c, c, c]))
+        join(system.node_dashpot().iter().flat_map(|&c| [c, c, c]))
     );
     if membranes {
         s.push_str(

@@ -13,6 +13,7 @@
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use nalgebra::{Matrix3, Point3};
 
+use super::dashpot::{Dashpot, check_dashpots};
 use super::element::CorotElement;
 use super::error::FemError;
 use super::fixed::FixedDofs;
@@ -269,6 +270,35 @@ impl SparsePattern {
                     sink.add_off_diagonal(p.max(q), p.min(q), rank, &blk);
                 }
             });
+        }
+        Ok(())
+    }
+}
+
+impl SparsePattern {
+    /// Adds the blocks c n nᵀ of `dashpots` to assembled `values` (fixed DOFs stay
+    /// projected); a caller wanting h·C passes dashpots with their coefficients times h.
+    pub fn add_dashpots(
+        &self,
+        dashpots: &[Dashpot],
+        fixed: &FixedDofs,
+        values: &mut [f64],
+    ) -> Result<(), FemError> {
+        check_dashpots(dashpots, self.dof_count() / 3)?;
+        if values.len() != self.nnz() || fixed.len() != self.dof_count() {
+            return Err(FemError::LengthMismatch {
+                what: "value buffer or fixed DOF mask",
+                expected: self.nnz(),
+                found: values.len(),
+            });
+        }
+        let mut sink = Sink {
+            col_ptr: self.symbolic.col_ptr(),
+            fixed,
+            values,
+        };
+        for d in dashpots {
+            sink.add_diagonal(d.node as usize, &d.block());
         }
         Ok(())
     }

@@ -67,13 +67,19 @@ pub enum FemError {
         element: ElementId,
     },
     #[error(
-        "not converged after {iterations} iterations: max nodal update {max_update:e} mm > tolerance \
-         {tolerance:e} mm (the positions hold the last admissible iterate)"
+        "not converged after {iterations} iterations: max nodal update {max_update:e} mm \
+         (tolerance {tolerance:e} mm), out-of-balance force {relative_residual:e} of the load \
+         (tolerance {residual_tolerance:e}; inf: not judged) (the positions hold the last \
+         admissible iterate)"
     )]
     NotConverged {
         iterations: usize,
         max_update: f64,
         tolerance: f64,
+        /// |out-of-balance force| / |load| at the last iterate whose update was small enough
+        /// (inf if none was).
+        relative_residual: f64,
+        residual_tolerance: f64,
     },
     #[error(
         "preconditioned conjugate gradients: relative residual {residual:e} > tolerance \

@@ -3,8 +3,8 @@
 //!
 //! [K (1 + iωβ) + iω (α M + C) − ω² M] û = F̂,
 //!
-//! with K the rest stiffness (elements plus node springs), M the lumped masses, C a diagonal
-//! of nodal dashpots (g/s) and Rayleigh α, β as SOFA applies them (to the whole stiffness,
+//! with K the rest stiffness (elements plus node springs), M the lumped masses, C the node
+//! blocks c n nᵀ of dashpots along a direction (g/s; `Dashpot`) and Rayleigh α, β as SOFA applies them (to the whole stiffness,
 //! springs included). The matrix is complex symmetric, not Hermitian, so it is factorised by
 //! faer's sparse LU (partial pivoting, the variant `fem::variant` picks; COLAMD ordering and
 //! symbolic analysis done once per model and reused at every frequency). Fixed DOFs are
@@ -17,6 +17,7 @@ use faer::{Conj, MatMut, Par, c64};
 use nalgebra::Vector3;
 
 use super::assembly::SparsePattern;
+use super::dashpot::{Dashpot, check_dashpots};
 use super::dynamics::{Rayleigh, non_negative};
 use super::error::FemError;
 use super::fixed::FixedDofs;
@@ -38,9 +39,10 @@ pub struct HarmonicSolver {
     stiffness: SparseColMat<usize, f64>,
     /// Position of each reduced DOF's diagonal in the values.
     diagonal: Vec<usize>,
-    /// Lumped mass (g) and dashpot (g/s) of each reduced DOF.
+    /// Lumped mass (g) of each reduced DOF.
     mass: Vec<f64>,
-    dashpot: Vec<f64>,
+    /// The dashpots' entries (g/s) between free DOFs, at their positions in the values.
+    dashpot: Vec<(usize, f64)>,
     rayleigh: Rayleigh,
     symbolic: SymbolicLu<usize>,
 }
@@ -53,19 +55,18 @@ fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
 
 impl HarmonicSolver {
     /// The solver of `model` with `fixed` DOFs, isotropic node springs `node_stiffness`
-    /// (µN/mm, one per node) and isotropic node dashpots `node_dashpot` (g/s, one per node).
+    /// (µN/mm, one per node) and `dashpots` (each along its own direction).
     pub fn new(
         model: &FemModel,
         fixed: &FixedDofs,
         node_stiffness: &[f64],
-        node_dashpot: &[f64],
+        dashpots: &[Dashpot],
         rayleigh: Rayleigh,
     ) -> Result<Self, FemError> {
         let n = model.node_count();
         for (what, expected, found) in [
             ("fixed DOF mask", 3 * n, fixed.len()),
             ("node stiffness", n, node_stiffness.len()),
-            ("node dashpots", n, node_dashpot.len()),
         ] {
             if expected != found {
                 return Err(FemError::LengthMismatch {
@@ -75,13 +76,10 @@ impl HarmonicSolver {
                 });
             }
         }
-        for (what, v) in node_stiffness
-            .iter()
-            .map(|v| ("node stiffness (µN/mm)", *v))
-            .chain(node_dashpot.iter().map(|v| ("node dashpot (g/s)", *v)))
-        {
-            non_negative(what, v)?;
+        for v in node_stiffness {
+            non_negative("node stiffness (µN/mm)", *v)?;
         }
+        check_dashpots(dashpots, n)?;
         rayleigh.validate()?;
         let pattern = SparsePattern::new(model);
         let mut state = CorotationalState::new(model);
@@ -123,16 +121,29 @@ impl HarmonicSolver {
         let stiffness = SparseColMat::try_new_from_triplets(m, m, &triplets)
             .map_err(|e| faer_error("harmonic pattern", e))?;
         let s = stiffness.symbolic();
-        let diagonal = (0..m)
-            .map(|c| {
-                let rows = &s.row_idx()[s.col_ptr()[c]..s.col_ptr()[c + 1]];
-                // every DOF has its diagonal block in the pattern
-                s.col_ptr()[c] + rows.partition_point(|&r| r < c)
-            })
-            .collect();
         let masses = model.lumped_masses();
         let mass = free.iter().map(|&d| masses[d / 3]).collect();
-        let dashpot = free.iter().map(|&d| node_dashpot[d / 3]).collect();
+        let position = |row: usize, col: usize| {
+            let rows = &s.row_idx()[s.col_ptr()[col]..s.col_ptr()[col + 1]];
+            // a node's diagonal block is in the pattern
+            s.col_ptr()[col] + rows.partition_point(|&r| r < row)
+        };
+        let diagonal = (0..m).map(|c| position(c, c)).collect();
+        let mut dashpot = Vec::with_capacity(9 * dashpots.len());
+        for d in dashpots {
+            let block = d.block();
+            for i in 0..3 {
+                for j in 0..3 {
+                    let (row, col) = (
+                        reduced[3 * d.node as usize + i],
+                        reduced[3 * d.node as usize + j],
+                    );
+                    if row != usize::MAX && col != usize::MAX {
+                        dashpot.push((position(row, col), block[(i, j)]));
+                    }
+                }
+            }
+        }
         let symbolic = factorize_symbolic_lu(s, variant::lu_params())
             .map_err(|e| faer_error("harmonic symbolic LU", e))?;
         Ok(HarmonicSolver {
@@ -180,8 +191,11 @@ impl HarmonicSolver {
             .iter()
             .map(|&k| c64::new(k, omega * beta * k))
             .collect();
-        for ((&p, &m), &c) in self.diagonal.iter().zip(&self.mass).zip(&self.dashpot) {
-            values[p] += c64::new(-omega * omega * m, omega * (self.rayleigh.mass * m + c));
+        for (&p, &m) in self.diagonal.iter().zip(&self.mass) {
+            values[p] += c64::new(-omega * omega * m, omega * self.rayleigh.mass * m);
+        }
+        for &(p, c) in &self.dashpot {
+            values[p] += c64::new(0.0, omega * c);
         }
         let par = Par::Seq;
         let mut mem = MemBuffer::new(StackReq::any_of(&[

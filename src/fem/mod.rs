@@ -2,7 +2,7 @@
 //! TetrahedronFEMForceField method="polar") and corotational CST membrane triangles, the
 //! membrane's discrete-shell bending hinges, lumped masses, sparse assembly with a pattern
 //! built once per mesh, a sparse Cholesky whose symbolic analysis is reused, a quasi-static
-//! spring-equilibrium solver and a linearised implicit Euler step (with a conjugate-gradient
+//! spring-equilibrium solver, point dashpots along one direction, and a linearised implicit Euler step (with a conjugate-gradient
 //! solver preconditioned by an earlier factor), a follower pressure load and a complex
 //! harmonic (frequency-domain) solver. Formulas: docs/fem.md.
 //!
@@ -14,6 +14,7 @@
 mod assembly;
 pub(crate) mod bending;
 mod cholesky;
+mod dashpot;
 mod dynamics;
 mod element;
 mod error;
@@ -33,6 +34,7 @@ mod variant;
 
 pub use assembly::SparsePattern;
 pub use cholesky::SparseCholesky;
+pub use dashpot::Dashpot;
 pub use dynamics::{ImplicitEuler, Rayleigh, StepReport};
 pub use error::{ElementId, FemError};
 pub use fixed::FixedDofs;

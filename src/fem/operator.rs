@@ -1,7 +1,7 @@
 //! Matrix-free product with the linearised implicit step matrix
-//! A = diag(d ⊗ I₃) + s·(K'(x) + K_σ⁺(x)), fixed DOFs projected out (row and column zero,
-//! diagonal 1): the same matrix `SparsePattern::assemble` + `add_membrane_stress_stiffness`
-//! build, applied element by element without assembling it.
+//! A = diag(d ⊗ I₃) + Σ c n nᵀ (directional dashpots) + s·(K'(x) + K_σ⁺(x)), fixed DOFs
+//! projected out (row and column zero, diagonal 1): the same matrix `SparsePattern::assemble`
+//! + `add_dashpots` + `add_membrane_stress_stiffness` build, applied element by element without assembling it.
 //!
 //! Why: a time step needs the current matrix only inside a few conjugate-gradient products,
 //! and scattering ~150,000 entries every step cost more than those products (the factor that
@@ -13,6 +13,7 @@
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
+use super::dashpot::{Dashpot, check_dashpots};
 use super::element::CorotElement;
 use super::error::FemError;
 use super::fixed::FixedDofs;
@@ -100,8 +101,8 @@ impl StepOperator {
         Ok(())
     }
 
-    /// y = A p with A = diag(`node_diagonal` ⊗ I₃) + `scale`·(K'(state) + K_σ⁺), fixed DOFs
-    /// projected out; `state` and the last `update` must be of the same configuration.
+    /// y = A p with A = diag(`node_diagonal` ⊗ I₃) + Σ c n nᵀ (`dashpots`, as given) +
+    /// `scale`·(K'(state) + K_σ⁺), fixed DOFs projected out; `state` and the last `update` must be of the same configuration.
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -109,11 +110,13 @@ impl StepOperator {
         state: &CorotationalState,
         scale: f64,
         node_diagonal: &[f64],
+        dashpots: &[Dashpot],
         fixed: &FixedDofs,
         p: &[f64],
         y: &mut [f64],
     ) -> Result<(), FemError> {
         state.check_model(model)?;
+        check_dashpots(dashpots, model.node_count())?;
         for (what, expected, found) in [
             ("node diagonal", model.node_count(), node_diagonal.len()),
             ("fixed DOF mask", model.dof_count(), fixed.len()),
@@ -146,6 +149,14 @@ impl StepOperator {
             for i in 0..3 {
                 y[i] = d * p[i];
             }
+        }
+        for d in dashpots {
+            let v = 3 * d.node as usize;
+            let local = d.block() * Vector3::new(free[v], free[v + 1], free[v + 2]);
+            y[v..v + 3]
+                .iter_mut()
+                .zip(local.iter())
+                .for_each(|(y, b)| *y += b);
         }
         add_warped(&model.tets, &state.tets, scale, free, y);
         add_warped(&model.membranes, &state.membranes, scale, free, y);

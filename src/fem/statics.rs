@@ -8,7 +8,11 @@
 //! the step x + αΔx starts at α = 1 and is halved while any tetrahedron would invert
 //! (det F ≤ 0) or any membrane triangle collapse; no returned state holds such an element.
 //! Convergence: a full step (α = 1) whose largest nodal update |Δx_v| (mm) is below
-//! `tolerance_mm`; a halved step never counts as converged.
+//! `tolerance_mm` and, when the solver has a residual tolerance
+//! (`StaticSolver::with_residual_tolerance`), whose out-of-balance force is at most
+//! that fraction of the load (Euclidean norms over the free DOFs; the load being the springs',
+//! nodal and pressure forces at the iterate): a small update alone can hide a slow
+//! modified-Newton iteration far from equilibrium. A halved step never counts as converged.
 
 use nalgebra::{Point3, Vector3};
 
@@ -78,6 +82,8 @@ pub struct StaticReport {
     pub halvings: usize,
     /// Largest nodal out-of-balance force over free DOFs at the returned state (µN).
     pub max_residual: f64,
+    /// |out-of-balance force| / |load| over the free DOFs at the returned state.
+    pub relative_residual: f64,
 }
 
 /// Static solver for one model and one set of fixed DOFs: the pattern and the symbolic
@@ -94,6 +100,9 @@ pub struct StaticSolver<'m> {
     rhs: Vec<f64>,
     trial: Vec<Point3<f64>>,
     tangent_diagonal: Vec<f64>,
+    /// Converged only when |residual| ≤ this × |load| (the module doc); `None` judges on the
+    /// update alone.
+    residual_tolerance: Option<f64>,
 }
 
 impl<'m> StaticSolver<'m> {
@@ -119,7 +128,22 @@ impl<'m> StaticSolver<'m> {
             rhs: vec![0.0; model.dof_count()],
             trial: Vec::with_capacity(model.node_count()),
             tangent_diagonal: vec![0.0; model.node_count()],
+            residual_tolerance: None,
         })
+    }
+
+    /// The same solver judging equilibrium on the out-of-balance force too: a solve converges
+    /// only when it is at most `fraction` of the load (the module doc).
+    pub fn with_residual_tolerance(mut self, fraction: f64) -> Result<Self, FemError> {
+        if !(fraction > 0.0 && fraction.is_finite()) {
+            return Err(FemError::InvalidParameter {
+                what: "residual tolerance (fraction of the load)",
+                value: fraction,
+                expected: "finite and > 0",
+            });
+        }
+        self.residual_tolerance = Some(fraction);
+        Ok(self)
     }
 
     /// Equilibrium under springs only; see `solve`.
@@ -186,6 +210,7 @@ impl<'m> StaticSolver<'m> {
         }
         let mut halvings = 0;
         let mut max_update = f64::INFINITY;
+        let mut relative_residual = f64::INFINITY;
         for iteration in 1..=options.max_iterations {
             self.residual(x, loads, pressure)?;
             self.pattern.assemble(
@@ -211,8 +236,16 @@ impl<'m> StaticSolver<'m> {
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
             halvings += h;
             max_update = step;
-            if h == 0 && max_update < options.tolerance_mm {
-                self.residual(x, loads, pressure)?;
+            if h > 0 || max_update >= options.tolerance_mm {
+                continue;
+            }
+            let load = self.residual(x, loads, pressure)?;
+            let residual = self.rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+            relative_residual = residual / load.max(f64::MIN_POSITIVE);
+            if self
+                .residual_tolerance
+                .is_none_or(|t| relative_residual <= t)
+            {
                 let max_residual = self
                     .rhs
                     .chunks_exact(3)
@@ -223,6 +256,7 @@ impl<'m> StaticSolver<'m> {
                     max_update_mm: max_update,
                     halvings,
                     max_residual,
+                    relative_residual,
                 });
             }
         }
@@ -230,6 +264,8 @@ impl<'m> StaticSolver<'m> {
             iterations: options.max_iterations,
             max_update,
             tolerance: options.tolerance_mm,
+            relative_residual,
+            residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
         })
     }
 
@@ -279,16 +315,15 @@ impl<'m> StaticSolver<'m> {
     }
 
     /// Writes the out-of-balance force at `x` (state already updated to `x`) into `rhs`,
-    /// zero on fixed DOFs.
+    /// zero on fixed DOFs; returns the Euclidean norm of the load (springs, nodal forces,
+    /// pressure) over the free DOFs.
     fn residual(
         &mut self,
         x: &[Point3<f64>],
         loads: &StaticLoads<'_>,
         pressure: Option<&PressureLoad<'_>>,
-    ) -> Result<(), FemError> {
+    ) -> Result<f64, FemError> {
         self.forces.fill(Vector3::zeros());
-        self.state
-            .add_elastic_forces(self.model, &mut self.forces)?;
         for s in loads.springs {
             let v = s.node as usize;
             self.forces[v] += (s.target - x[v]) * s.stiffness;
@@ -299,11 +334,22 @@ impl<'m> StaticSolver<'m> {
         if let Some(p) = pressure {
             p.add_forces(x, &mut self.forces);
         }
+        let load = self
+            .forces
+            .iter()
+            .flat_map(|f| f.iter())
+            .enumerate()
+            .filter(|(d, _)| !self.fixed.is_fixed(*d))
+            .map(|(_, f)| f * f)
+            .sum::<f64>()
+            .sqrt();
+        self.state
+            .add_elastic_forces(self.model, &mut self.forces)?;
         for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
             r.copy_from_slice(f.as_slice());
         }
         self.fixed.zero_fixed(&mut self.rhs);
-        Ok(())
+        Ok(load)
     }
 
     /// Applies x += αΔx (Δx in `rhs`) with the largest α = 2⁻ᵏ that keeps every element

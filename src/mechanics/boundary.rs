@@ -10,7 +10,10 @@
 //!   RestShapeSpringsForceField); fixing it would immobilise the stapes;
 //! - the cochlear load is a dashpot Z_c·A² (A the area of the medial footplate face, Z_c the
 //!   atlas's cochlear input impedance), spread over the footplate nodes in proportion to their
-//!   area and acting on all three DOFs of each (SOFA DiagonalVelocityDampingForceField).
+//!   area and acting along the footplate normal only: the cochlear fluid resists the piston
+//!   motion, not the footplate's motion in its own plane. (The SOFA scene's
+//!   DiagonalVelocityDampingForceField has one coefficient per axis, so the scene applies it
+//!   on all three axes; docs/mechanics.md gives the difference.)
 //!
 //! Axes, built from the mesh so that they move with it (a rigidly moved atlas measures the
 //! same): `medial` = minus the area-weighted mean normal of the lateral eardrum face;
@@ -22,7 +25,7 @@ use nalgebra::{Point3, Vector3};
 use super::error::MechanicsError;
 use crate::atlas::materials::cochlear_damping_for;
 use crate::atlas::model::{Atlas, sets};
-use crate::fem::{FemModel, FixedDofs, Rayleigh, Spring};
+use crate::fem::{Dashpot, FemModel, FixedDofs, Rayleigh, Spring};
 
 /// 1 N/m in µN/mm.
 const N_PER_M_TO_UN_PER_MM: f64 = 1e3;
@@ -56,8 +59,8 @@ pub struct MechanicalSystem {
     pub springs: Vec<Spring>,
     /// Spring stiffness per node (µN/mm), zero off the footplate rim.
     pub node_stiffness: Vec<f64>,
-    /// Cochlear dashpot per node (g/s), zero off the footplate.
-    pub node_dashpot: Vec<f64>,
+    /// The cochlear dashpots: one per footplate node, along `footplate_normal`.
+    pub dashpots: Vec<Dashpot>,
     pub rayleigh: Rayleigh,
     /// The eardrum's lateral face (normals toward the ear canal).
     pub eardrum: Vec<[u32; 3]>,
@@ -206,7 +209,14 @@ impl MechanicalSystem {
             .map(|(v, w)| (v as u32, *w))
             .collect();
         let c_total = cochlear_damping_for(atlas.damping.cochlear_impedance_pa_s_per_m3, fp_area);
-        let node_dashpot = weight.iter().map(|w| w * c_total).collect();
+        let dashpots = footplate
+            .iter()
+            .map(|&(node, w)| Dashpot {
+                node,
+                coefficient: w * c_total,
+                direction: footplate_normal,
+            })
+            .collect();
         let tied = atlas.landmarks.umbo;
         let cell = atlas.mesh.tets.tets.get(tied.tet as usize).ok_or_else(|| {
             MechanicsError::BadAtlas {
@@ -218,7 +228,7 @@ impl MechanicalSystem {
             fixed,
             springs,
             node_stiffness,
-            node_dashpot,
+            dashpots,
             rayleigh: Rayleigh {
                 mass: atlas.damping.rayleigh_alpha_per_s,
                 stiffness: atlas.damping.rayleigh_beta_s,
@@ -238,6 +248,16 @@ impl MechanicalSystem {
 }
 
 impl MechanicalSystem {
+    /// The cochlear dashpot of each node (g/s, zero off the footplate), for a component that
+    /// damps every axis alike (the SOFA scene's DiagonalVelocityDampingForceField).
+    pub fn node_dashpot(&self) -> Vec<f64> {
+        let mut c = vec![0.0; self.model.node_count()];
+        for d in &self.dashpots {
+            c[d.node as usize] += d.coefficient;
+        }
+        c
+    }
+
     /// The same system with the whole eardrum bending at one flexural thickness: discrete-
     /// shell hinges on its membrane with the flexural rigidity of each region's material at
     /// `thickness_mm` (`FemModel::with_membrane_bending`), in place of the atlas's own

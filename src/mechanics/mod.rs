@@ -1,10 +1,12 @@
 //! Mechanical validation and simulation of an atlas (or of a package: the atlas with
 //! registered node positions): umbo displacement under static pressure (UDSP), the stapes
 //! velocity transfer function (TFA), their verdicts against literature bands and against a
-//! reference atlas, and real-time implicit time stepping. Method, bands (and where they come
+//! reference atlas, pathologies of the chain (`condition`), and real-time implicit time
+//! stepping. Method, bands (and where they come
 //! from) and figures: `docs/mechanics.md`; the FEM formulas: `docs/fem.md`.
 
 pub mod boundary;
+pub mod condition;
 pub mod error;
 pub mod simulate;
 pub mod tfa;
@@ -13,6 +15,7 @@ pub mod validate;
 pub mod verdict;
 
 pub use boundary::{MechanicalSystem, TiedPoint};
+pub use condition::Condition;
 pub use error::MechanicsError;
 pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};

@@ -5,7 +5,8 @@
 //! x' = x + h v',
 //!
 //! with K_T the warped tangent R K Rᵀ plus the membranes' tensile stress stiffness plus the
-//! annular-ligament springs at the current positions. The linear system is solved by conjugate
+//! annular-ligament springs at the current positions, and C the cochlear dashpots along the
+//! footplate normal. The linear system is solved by conjugate
 //! gradients on the *current* matrix, applied matrix-free element by element
 //! (`StepOperator`: the matrix is not assembled for the products), preconditioned with a
 //! Cholesky factor of the same matrix from an earlier step (the study's scheme: Courtecuisse
@@ -26,7 +27,7 @@ use serde::Serialize;
 use super::boundary::MechanicalSystem;
 use super::error::MechanicsError;
 use crate::fem::{
-    CorotationalState, Pcg, PressureLoad, SparseCholesky, SparsePattern, StepOperator,
+    CorotationalState, Dashpot, Pcg, PressureLoad, SparseCholesky, SparsePattern, StepOperator,
 };
 
 /// Relative residual of each step's conjugate-gradient solve.
@@ -126,6 +127,8 @@ pub struct Simulator<'s> {
     pattern: SparsePattern,
     values: Vec<f64>,
     diagonal: Vec<f64>,
+    /// The cochlear dashpots times the time step (their term h·C of the step matrix).
+    dashpots: Vec<Dashpot>,
     cholesky: SparseCholesky,
     operator: StepOperator,
     pcg: Pcg,
@@ -165,9 +168,16 @@ impl<'s> Simulator<'s> {
         let diagonal: Vec<f64> = model
             .lumped_masses()
             .iter()
-            .zip(&system.node_dashpot)
             .zip(&system.node_stiffness)
-            .map(|((m, c), k)| (1.0 + dt * alpha) * m + dt * c + dt * (dt + beta) * k)
+            .map(|(m, k)| (1.0 + dt * alpha) * m + dt * (dt + beta) * k)
+            .collect();
+        let dashpots = system
+            .dashpots
+            .iter()
+            .map(|d| Dashpot {
+                coefficient: dt * d.coefficient,
+                ..*d
+            })
             .collect();
         let pattern = SparsePattern::new(model);
         let cholesky =
@@ -179,6 +189,7 @@ impl<'s> Simulator<'s> {
             values: pattern.zero_values(),
             pattern,
             diagonal,
+            dashpots,
             cholesky,
             operator: StepOperator::new(model),
             pcg: Pcg::new(3 * n),
@@ -222,6 +233,9 @@ impl<'s> Simulator<'s> {
                 &s.fixed,
                 &mut self.values,
             )
+            .map_err(MechanicsError::solve("step matrix"))?;
+        self.pattern
+            .add_dashpots(&self.dashpots, &s.fixed, &mut self.values)
             .map_err(MechanicsError::solve("step matrix"))?;
         self.cholesky
             .factorise(self.pattern.matrix(&self.values))
@@ -279,9 +293,14 @@ impl<'s> Simulator<'s> {
         }
         s.fixed.zero_fixed(&mut self.rhs);
         let scale = h * (h + s.rayleigh.stiffness);
-        let (operator, state, diagonal) = (&mut self.operator, &self.state, &self.diagonal);
+        let (operator, state, diagonal, dashpots) = (
+            &mut self.operator,
+            &self.state,
+            &self.diagonal,
+            &self.dashpots,
+        );
         let apply = |p: &[f64], y: &mut [f64]| {
-            operator.apply(model, state, scale, diagonal, &s.fixed, p, y)
+            operator.apply(model, state, scale, diagonal, dashpots, &s.fixed, p, y)
         };
         // CG from zero: the steps are quasi-static (the Rayleigh damping settles the ear well
         // within one 0.04 s step), so the last velocity is no better a guess, and a zero one

@@ -177,7 +177,7 @@ pub fn transfer_function(
         &system.model,
         &system.fixed,
         &system.node_stiffness,
-        &system.node_dashpot,
+        &system.dashpots,
         system.rayleigh,
     )
     .map_err(MechanicsError::solve("harmonic system"))?;

@@ -27,6 +27,9 @@ use crate::progress::{Reporter, Task};
 /// The pressures of the gate (Pa): ±1, ±2, ±4 kPa.
 pub const GATE_PRESSURES_PA: [f64; 6] = [-4000.0, -2000.0, -1000.0, 1000.0, 2000.0, 4000.0];
 
+/// Default `UdspOptions::residual_tolerance`.
+const RESIDUAL_TOLERANCE: f64 = 1e-3;
+
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UdspOptions {
@@ -39,6 +42,9 @@ pub struct UdspOptions {
     /// Convergence of each increment: largest nodal update (mm); 1e-5 mm is 0.05 % of the
     /// umbo displacement at 1 kPa.
     pub tolerance_mm: f64,
+    /// Convergence of each increment, also: the out-of-balance force at most this fraction
+    /// of the load (`StaticSolver::with_residual_tolerance`).
+    pub residual_tolerance: f64,
     /// Newton iteration limit per increment.
     pub max_iterations: usize,
     /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): a thin
@@ -54,6 +60,7 @@ impl Default for UdspOptions {
             max_step_pa: 2000.0,
             min_step_pa: 62.5,
             tolerance_mm: 1e-5,
+            residual_tolerance: RESIDUAL_TOLERANCE,
             max_iterations: 200,
             tangent_shift: 100.0,
         }
@@ -69,6 +76,9 @@ pub struct UdspPoint {
     /// Newton iterations of the increments from the previous point to this one (an attempt
     /// that failed and was halved not counted).
     pub iterations: usize,
+    /// |out-of-balance force| / |load| at this point's equilibrium (0 at rest).
+    #[serde(default)]
+    pub relative_residual: f64,
 }
 
 /// The umbo displacement curve, sorted by pressure.
@@ -112,6 +122,7 @@ pub fn static_pressure_curve(
         ("largest pressure step (Pa)", options.max_step_pa),
         ("smallest pressure step (Pa)", options.min_step_pa),
         ("static tolerance (mm)", options.tolerance_mm),
+        ("static residual tolerance", options.residual_tolerance),
         ("tangent shift + 1 (µN/mm)", options.tangent_shift + 1.0),
     ] {
         if !(v.is_finite() && v > 0.0) {
@@ -151,6 +162,7 @@ pub fn static_pressure_curve(
         pressure_pa: 0.0,
         umbo_mm: 0.0,
         iterations: 0,
+        relative_residual: 0.0,
     });
     points.extend(pos_points);
     points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
@@ -173,6 +185,7 @@ fn solve_branch(
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
     let mut solver = StaticSolver::new(&system.model, system.fixed.clone())
+        .and_then(|s| s.with_residual_tolerance(options.residual_tolerance))
         .map_err(MechanicsError::solve("static solver"))?;
     let loads = StaticLoads {
         springs: &system.springs,
@@ -191,6 +204,7 @@ fn solve_branch(
     let mut before = x.clone();
     for &target in pressures {
         let mut iterations = 0;
+        let mut relative_residual = 0.0;
         while current != target {
             let p = if (target - current).abs() <= step {
                 target
@@ -206,6 +220,7 @@ fn solve_branch(
             match solver.solve_with_pressure(&mut x, &loads, &load, &static_options) {
                 Ok(report) => {
                     iterations += report.iterations;
+                    relative_residual = report.relative_residual;
                     current = p;
                     step = (2.0 * step).min(options.max_step_pa);
                 }
@@ -220,6 +235,7 @@ fn solve_branch(
             pressure_pa: target,
             umbo_mm: (system.umbo.position(&x) - u0).dot(&system.medial),
             iterations,
+            relative_residual,
         });
         task.inc(1);
     }

@@ -6,6 +6,7 @@ use nalgebra::Point3;
 use serde::Serialize;
 
 use super::boundary::MechanicalSystem;
+use super::condition::Condition;
 use super::error::MechanicsError;
 use super::tfa::{TfaOptions, TransferFunction, transfer_function};
 use super::udsp::{StaticCurve, UdspOptions, static_pressure_curve};
@@ -24,6 +25,9 @@ pub struct ValidationOptions {
     /// (mm; `MechanicalSystem::with_eardrum_bending`) instead of the atlas's own. `None`, the
     /// atlas as it is, is what `run` and `batch` use.
     pub eardrum_bending_mm: Option<f64>,
+    /// The ear's condition (`Condition::apply`): a fixation or disarticulation of the atlas
+    /// (and, for a package, of the atlas it is gated against).
+    pub condition: Condition,
 }
 
 impl Default for ValidationOptions {
@@ -33,6 +37,7 @@ impl Default for ValidationOptions {
             tfa: TfaOptions::default(),
             udsp: Some(UdspOptions::default()),
             eardrum_bending_mm: None,
+            condition: Condition::Normal,
         }
     }
 }
@@ -54,7 +59,7 @@ pub fn mechanics(
     options: &ValidationOptions,
     progress: &dyn Reporter,
 ) -> Result<Mechanics, MechanicsError> {
-    let mut system = MechanicalSystem::new(atlas, nodes)?;
+    let mut system = MechanicalSystem::new(&options.condition.apply(atlas)?, nodes)?;
     if let Some(h) = options.eardrum_bending_mm {
         system = system.with_eardrum_bending(h)?;
     }
@@ -78,6 +83,8 @@ pub fn mechanics(
 /// it came from, whose own results are kept as `reference`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Validation {
+    /// The ear's condition the checks ran on.
+    pub condition: Condition,
     pub mechanics: Mechanics,
     pub reference: Option<Mechanics>,
     pub verdict: Verdict,
@@ -92,6 +99,7 @@ pub fn validate_atlas(
     let m = mechanics(atlas, atlas.nodes(), options, progress)?;
     let verdict = literature_verdict(&m.transfer_function, &m.udsp);
     Ok(Validation {
+        condition: options.condition,
         mechanics: m,
         reference: None,
         verdict,
@@ -128,6 +136,7 @@ pub fn validate_package_against(
         &reference.udsp,
     );
     Ok(Validation {
+        condition: options.condition,
         mechanics: m,
         reference: Some(reference.clone()),
         verdict,

@@ -424,6 +424,7 @@ fn validation() -> crate::mechanics::Validation {
         &atlas.udsp,
     );
     crate::mechanics::Validation {
+        condition: crate::mechanics::Condition::Normal,
         mechanics: package,
         reference: Some(atlas),
         verdict,
