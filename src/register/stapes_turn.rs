@@ -14,11 +14,11 @@
 //! surface lying on the bone's edges scores high; one in air or buried in the otic capsule
 //! scores near zero. The best turn (no turn among the candidates) is the articulation's start.
 //!
-//! Speed: the 2,601 turns are first screened on every [`SCREEN_STRIDE`]-th triangle of the
-//! surface (the contrast is an area-weighted mean; a quarter of ~800 triangles spread over the
-//! whole stapes ranks the turns as all do), then the [`FINALISTS`] best are scored on every
-//! triangle and the best of those is kept: about a third of the samples of scoring every turn
-//! on every triangle.
+//! Speed: the 2,601 turns are first screened on every 4th triangle of the surface (the
+//! contrast is an area-weighted mean, and a quarter of the triangles still covers the whole
+//! stapes), then the 32 best are scored on every triangle and the best of those is kept:
+//! about a third of the samples of scoring every turn on every triangle, and the same turn on
+//! the 8 real-chain development cases.
 
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
