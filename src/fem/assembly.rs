@@ -239,18 +239,7 @@ impl SparsePattern {
     ) -> Result<(), FemError> {
         state.check_model(model)?;
         check_positions(model, x)?;
-        if values.len() != self.nnz() || fixed.len() != self.dof_count() {
-            return Err(FemError::LengthMismatch {
-                what: "value buffer or fixed DOF mask",
-                expected: self.nnz(),
-                found: values.len(),
-            });
-        }
-        let mut sink = Sink {
-            col_ptr: self.symbolic.col_ptr(),
-            fixed,
-            values,
-        };
+        let mut sink = self.sink(fixed, values)?;
         for ((e, r), ranks) in model
             .membranes
             .iter()
@@ -285,18 +274,7 @@ impl SparsePattern {
         values: &mut [f64],
     ) -> Result<(), FemError> {
         check_dashpots(dashpots, self.dof_count() / 3)?;
-        if values.len() != self.nnz() || fixed.len() != self.dof_count() {
-            return Err(FemError::LengthMismatch {
-                what: "value buffer or fixed DOF mask",
-                expected: self.nnz(),
-                found: values.len(),
-            });
-        }
-        let mut sink = Sink {
-            col_ptr: self.symbolic.col_ptr(),
-            fixed,
-            values,
-        };
+        let mut sink = self.sink(fixed, values)?;
         for d in dashpots {
             sink.add_diagonal(d.node as usize, &d.block());
         }
@@ -305,6 +283,29 @@ impl SparsePattern {
 }
 
 /// Destination of the scatter: the values, their column pointers and the fixed DOFs.
+impl SparsePattern {
+    /// A sink adding blocks to assembled `values` of this pattern, fixed DOFs projected;
+    /// checks the lengths of `values` and `fixed`.
+    fn sink<'a>(
+        &'a self,
+        fixed: &'a FixedDofs,
+        values: &'a mut [f64],
+    ) -> Result<Sink<'a>, FemError> {
+        if values.len() != self.nnz() || fixed.len() != self.dof_count() {
+            return Err(FemError::LengthMismatch {
+                what: "value buffer or fixed DOF mask",
+                expected: self.nnz(),
+                found: values.len(),
+            });
+        }
+        Ok(Sink {
+            col_ptr: self.symbolic.col_ptr(),
+            fixed,
+            values,
+        })
+    }
+}
+
 struct Sink<'a> {
     col_ptr: &'a [usize],
     fixed: &'a FixedDofs,

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::VtuEncoding;
-use super::write::{Data, data_array, escape};
+use super::write::{Data, cell_arrays, data_array, escape};
 use crate::mesh::TriMesh;
 use crate::mesh::io::{MeshIoError, write_bytes};
 
@@ -51,14 +51,7 @@ pub fn vtp_string(
         .flat_map(|t| t.iter().map(|&v| i64::from(v)))
         .collect();
     let offsets: Vec<i64> = (1..=mesh.triangles.len()).map(|i| 3 * i as i64).collect();
-    data_array(
-        &mut out,
-        "connectivity",
-        1,
-        Data::I64(&connectivity),
-        encoding,
-    );
-    data_array(&mut out, "offsets", 1, Data::I64(&offsets), encoding);
+    cell_arrays(&mut out, &connectivity, &offsets, encoding);
     out.push_str("      </Polys>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
     Ok(out)
 }

@@ -59,6 +59,17 @@ pub(super) fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// The `connectivity` and `offsets` arrays of a VTK XML cell block (VTU `Cells`, VTP `Polys`).
+pub(super) fn cell_arrays(
+    out: &mut String,
+    connectivity: &[i64],
+    offsets: &[i64],
+    encoding: VtuEncoding,
+) {
+    data_array(out, "connectivity", 1, Data::I64(connectivity), encoding);
+    data_array(out, "offsets", 1, Data::I64(offsets), encoding);
+}
+
 pub(super) fn data_array(
     out: &mut String,
     name: &str,
@@ -127,14 +138,7 @@ pub fn vtu_string(
     let types: Vec<u8> = std::iter::repeat_n(VTK_TETRA, m.tets.len())
         .chain(std::iter::repeat_n(VTK_TRIANGLE, mesh.triangles.len()))
         .collect();
-    data_array(
-        &mut out,
-        "connectivity",
-        1,
-        Data::I64(&connectivity),
-        encoding,
-    );
-    data_array(&mut out, "offsets", 1, Data::I64(&offsets), encoding);
+    cell_arrays(&mut out, &connectivity, &offsets, encoding);
     data_array(&mut out, "types", 1, Data::U8(&types), encoding);
     out.push_str("      </Cells>\n      <CellData Scalars=\"region\">\n");
     let regions: Vec<i32> = mesh.cell_regions().map(i32::from).collect();
