@@ -123,26 +123,25 @@ pub fn search(
         .collect();
     // best first; ties in grid order, so the result does not depend on the thread count
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-    let best = ranked
+    let finalists: Vec<(f64, usize)> = ranked
         .par_iter()
         .take(FINALISTS)
         .map(|&(_, k)| (score(&patches, area, &candidates[k]), k))
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold((before, None), |best, (value, k)| {
-            if value > best.0 {
-                (value, Some(k))
-            } else {
-                best
-            }
-        });
-    let best = (
-        best.0,
-        best.1.map_or_else(Rotation3::identity, |k| candidates[k]),
-    );
-    record.turn_deg = best.1.angle().to_degrees();
-    record.contrast_after_hu = best.0;
-    (best.1, record)
+        .collect();
+    // the first finalist scoring above every earlier one (and above no turn at all)
+    let (contrast, turn) =
+        finalists
+            .into_iter()
+            .fold((before, Rotation3::identity()), |best, (value, k)| {
+                if value > best.0 {
+                    (value, candidates[k])
+                } else {
+                    best
+                }
+            });
+    record.turn_deg = turn.angle().to_degrees();
+    record.contrast_after_hu = contrast;
+    (turn, record)
 }
 
 /// The grid of turns: the stapes's `axis` tilted by 0, 5, ... `max_tilt_deg` degrees towards
