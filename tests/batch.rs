@@ -1,6 +1,8 @@
 //! `otoatlas batch` and `cohort-report` end to end on the sample cases: a failing case does not
 //! stop the cohort, shards merge into the same cohort, a batch killed mid-run and resumed gives
 //! the same packages as an uninterrupted one, and the emitted Slurm script is valid shell.
+//! Only the first batch validates the packages' mechanics; the others switch it off (a case
+//! then takes seconds), as their subject is the batch, not the mechanics.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -145,11 +147,14 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
 }
 
 #[test]
-#[ignore = "heavy: two shards of the sample cases, 28 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: two shards of the sample cases, 8 s in debug; scripts/test.sh runs it"]
 fn shards_merge_into_the_whole_cohort() {
     let dir = tempfile::tempdir().unwrap();
+    let config = crate::common::config_without_validation(dir.path());
     let out = dir.path().join("out");
     let o = run(otoatlas()
+        .arg("--config")
+        .arg(&config)
         .args(["batch", "--shard", "0/2", "--out"])
         .arg(&out)
         .arg(samples()));
@@ -165,6 +170,8 @@ fn shards_merge_into_the_whole_cohort() {
         .env("SLURM_ARRAY_TASK_ID", "11")
         .env("SLURM_ARRAY_TASK_MIN", "10")
         .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .arg("--config")
+        .arg(&config)
         .args(["batch", "--out"])
         .arg(&out)
         .arg(samples()));
@@ -243,9 +250,15 @@ fn package_files(out: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 }
 
 #[test]
-#[ignore = "heavy: a clean batch, a killed one and its resumption, 53 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: a clean batch, a killed one and its resumption, 21 s in debug; scripts/test.sh runs it"]
 fn a_killed_batch_resumes_to_the_same_packages() {
     let dir = tempfile::tempdir().unwrap();
+    let config = crate::common::config_without_validation(dir.path());
+    let otoatlas = || {
+        let mut c = otoatlas();
+        c.arg("--config").arg(&config);
+        c
+    };
     let clean = dir.path().join("clean");
     let o = run(otoatlas()
         .args(["batch", "--jobs", "1", "--out"])
@@ -330,22 +343,24 @@ fn ran_resumed_failed(o: &Output) -> (usize, usize, usize) {
 }
 
 #[test]
-#[ignore = "heavy: three batch runs of the sample cases, 74 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: four batch runs of the sample cases, 18 s in debug; scripts/test.sh runs it"]
 fn resume_reruns_exactly_the_cases_that_changed() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = sample_cohort(dir.path());
     let out = dir.path().join("out");
-    let batch = |extra: &[&str]| {
+    let config = crate::common::config_without_validation(dir.path());
+    let batch = |config: &Path| {
         let o = run(otoatlas()
             .args(["batch", "--jobs", "2", "--resume", "--out"])
             .arg(&out)
-            .arg(&cohort)
-            .args(extra));
+            .arg("--config")
+            .arg(config)
+            .arg(&cohort));
         assert!(o.status.success(), "{o:?}");
         o
     };
-    assert_eq!(ran_resumed_failed(&batch(&[])), (3, 0, 0));
-    assert_eq!(ran_resumed_failed(&batch(&[])), (0, 3, 0));
+    assert_eq!(ran_resumed_failed(&batch(&config)), (3, 0, 0));
+    assert_eq!(ran_resumed_failed(&batch(&config)), (0, 3, 0));
 
     // case-001: its status lost (killed between package and status) -> resumed, status restored
     std::fs::remove_file(out.join("cases/case-001/status.json")).unwrap();
@@ -364,7 +379,7 @@ fn resume_reruns_exactly_the_cases_that_changed() {
     let x = landmarks["umbo"][0].as_f64().unwrap();
     landmarks["umbo"][0] = (x + 0.01).into();
     std::fs::write(&path, landmarks.to_string()).unwrap();
-    assert_eq!(ran_resumed_failed(&batch(&[])), (2, 1, 0));
+    assert_eq!(ran_resumed_failed(&batch(&config)), (2, 1, 0));
     let status: Value = serde_json::from_str(
         &std::fs::read_to_string(out.join("cases/case-001/status.json")).unwrap(),
     )
@@ -372,35 +387,12 @@ fn resume_reruns_exactly_the_cases_that_changed() {
     assert_eq!(status["outcome"], "ok");
 
     // another configuration -> every case again
-    let config = dir.path().join("pipeline.toml");
-    let default =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline.toml"))
-            .unwrap();
-    let changed = default.replacen("search_range_mm = 0.8", "search_range_mm = 0.75", 1);
-    assert_ne!(changed, default);
-    std::fs::write(&config, changed).unwrap();
-    let config_arg = config.to_string_lossy().into_owned();
-    assert_eq!(
-        ran_resumed_failed(&batch(&["--config", &config_arg])),
-        (3, 0, 0)
-    );
-}
-
-/// The default configuration with the mechanics validation off (a case then takes seconds).
-fn config_without_validation(dir: &Path) -> PathBuf {
-    let default =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline.toml"))
-            .unwrap();
-    let at = default.find("[validate]\n").unwrap();
-    let (head, tail) = default.split_at(at);
-    let changed = format!(
-        "{head}{}",
-        tail.replacen("\nenabled = true\n", "\nenabled = false\n", 1)
-    );
-    assert_ne!(changed, default);
-    let path = dir.join("pipeline.toml");
-    std::fs::write(&path, changed).unwrap();
-    path
+    let before = std::fs::read_to_string(&config).unwrap();
+    let changed = before.replacen("search_range_mm = 0.8", "search_range_mm = 0.75", 1);
+    assert_ne!(changed, before);
+    let other = dir.path().join("other.toml");
+    std::fs::write(&other, changed).unwrap();
+    assert_eq!(ran_resumed_failed(&batch(&other)), (3, 0, 0));
 }
 
 #[test]
@@ -440,7 +432,7 @@ fn a_case_killed_by_a_signal_fails_alone_and_resume_still_works() {
         .unwrap()
         .set_len(352 + 1024 * 1024 * 300 * 2)
         .unwrap();
-    let config = config_without_validation(dir.path());
+    let config = crate::common::config_without_validation(dir.path());
     let out = dir.path().join("out");
     let batch = |extra: &[&str]| {
         run(otoatlas()

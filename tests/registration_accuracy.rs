@@ -24,12 +24,17 @@ fn truth(case: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap()).unwrap()
 }
 
+/// `run CASE --out OUT EXTRA..` without the package mechanics (tested on their own in
+/// mechanics_packages), with the configuration written beside `out`.
 fn register(case: &Path, out: &Path, extra: &[&str]) -> (i32, Value) {
+    let config = common::config_without_validation(out.parent().unwrap());
     let mut args = vec![
         "run",
         case.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
     otoatlas_json(&args)
@@ -135,7 +140,7 @@ fn check(s: &Scored) {
 }
 
 #[test]
-#[ignore = "heavy: registers the three sample cases, 20 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: registers the three sample cases, 10 s in debug; scripts/test.sh runs it"]
 fn the_sample_cases_register_within_the_accuracy_bounds() {
     let dir = tempfile::tempdir().unwrap();
     for k in 1..=3 {
@@ -146,7 +151,7 @@ fn the_sample_cases_register_within_the_accuracy_bounds() {
 }
 
 #[test]
-#[ignore = "heavy: makes and registers ten phantoms, 143 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: makes and registers ten phantoms, 69 s in debug; scripts/test.sh runs it"]
 fn ten_more_phantoms_register_within_the_accuracy_bounds() {
     let dir = tempfile::tempdir().unwrap();
     let cases = dir.path().join("cases");
@@ -272,7 +277,7 @@ fn without_a_side_or_landmarks_run_refuses_clearly() {
 }
 
 #[test]
-#[ignore = "heavy: a full run and resumed runs of case-002, 29 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: a full run and resumed runs of case-002, 15 s in debug; scripts/test.sh runs it"]
 fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     let case = root().join("sample_cases/case-002");
     let dir = tempfile::tempdir().unwrap();
