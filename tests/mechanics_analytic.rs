@@ -275,3 +275,73 @@ fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() 
     // of δ at every node (measured 0.74 %)
     assert!(worst < 1e-2 * exact, "{worst} vs {exact}");
 }
+
+#[test]
+fn reusing_the_factorised_tangent_reaches_the_fresh_newton_equilibrium() {
+    // A sphere at 2 kPa (strain 0.2 %): the tangent leaves out the follower load stiffness, so
+    // the iteration converges linearly and the residual halves between iterations, where
+    // `reuse_tangent_below` keeps the last factorisation. Same equilibrium, fewer
+    // factorisations; at 0 every iteration factorises (the default). A second increment on the
+    // same solver (to 2.4 kPa) starts with the tangent the first one ended with.
+    let radius = 4.0;
+    let sphere = icosphere(Point3::origin(), radius, 3);
+    let mat = MembraneMaterial {
+        youngs_modulus: 3.0e7,
+        poisson_ratio: 0.3,
+        thickness: 0.05,
+        bending_thickness: None,
+        density: 1.2e-3,
+    };
+    let model = membrane_model(&sphere.vertices, &sphere.triangles, mat);
+    let fixed = symmetry_dofs(&sphere.vertices);
+    let load = |pressure| PressureLoad {
+        triangles: &sphere.triangles,
+        pressure,
+    };
+    let solve = |reuse: f64| {
+        let mut x = sphere.vertices.clone();
+        let mut solver = StaticSolver::new(&model, fixed.clone())
+            .unwrap()
+            .with_residual_tolerance(1e-9)
+            .unwrap();
+        let options = StaticOptions {
+            tolerance_mm: 1e-10,
+            reuse_tangent_below: reuse,
+            ..StaticOptions::default()
+        };
+        let reports = [2e3, 2.4e3].map(|p| {
+            solver
+                .solve_with_pressure(&mut x, &StaticLoads::default(), &load(p), &options)
+                .unwrap()
+        });
+        (x, reports)
+    };
+    let (fresh, fresh_reports) = solve(0.0);
+    let (reused, reused_reports) = solve(0.5);
+    println!("fresh {fresh_reports:?}\nreused {reused_reports:?}");
+    for (f, r) in fresh_reports.iter().zip(&reused_reports) {
+        assert_eq!(f.factorisations, f.iterations);
+        assert!(r.factorisations < f.factorisations);
+    }
+    let growth = fresh
+        .iter()
+        .zip(&sphere.vertices)
+        .map(|(p, p0)| (p - p0).norm())
+        .fold(0.0, f64::max);
+    let apart = fresh
+        .iter()
+        .zip(&reused)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(apart <= 1e-8 * growth, "{apart} mm of {growth} mm");
+    let mut solver = StaticSolver::new(&model, fixed.clone()).unwrap();
+    let bad = StaticOptions {
+        reuse_tangent_below: 1.0,
+        ..StaticOptions::default()
+    };
+    let mut x = sphere.vertices.clone();
+    assert!(matches!(
+        solver.solve_with_pressure(&mut x, &StaticLoads::default(), &load(2e3), &bad),
+        Err(otoatlas::fem::FemError::InvalidParameter { .. })
+    ));
+}

@@ -13,6 +13,15 @@
 //! that fraction of the load (Euclidean norms over the free DOFs; the load being the springs',
 //! nodal and pressure forces at the iterate): a small update alone can hide a slow
 //! modified-Newton iteration far from equilibrium. A halved step never counts as converged.
+//!
+//! Tangent reuse (`StaticOptions::reuse_tangent_below`, off by default): an iteration whose
+//! residual has fallen to at most that fraction of the previous iteration's solves with the
+//! last factorised tangent instead of assembling and factorising a new one (a chord step;
+//! the numeric factorisation is most of an iteration's cost). The residual, the step and the
+//! convergence test are the same, so the equilibrium is too; only the path changes. Under
+//! reuse the last factorisation also carries over to the next solve when its tangent has the
+//! same diagonal (shift and springs) and pressure terms: the next load increment starts
+//! where the last one ended, at the same tangent.
 
 use nalgebra::{Point3, Vector3};
 
@@ -58,6 +67,10 @@ pub struct StaticOptions {
     /// plane; a shift above the membrane tension σh there keeps the iteration definite and
     /// stable. (A membrane in compression has no flat equilibrium at all: it wrinkles.)
     pub tangent_shift: f64,
+    /// Tangent reuse (module doc): an iteration whose residual norm is at most this fraction
+    /// of the previous iteration's keeps the last factorisation; 0 (the default) assembles and
+    /// factorises at every iteration.
+    pub reuse_tangent_below: f64,
 }
 
 impl Default for StaticOptions {
@@ -67,6 +80,7 @@ impl Default for StaticOptions {
             max_iterations: 100,
             max_halvings: 30,
             tangent_shift: 0.0,
+            reuse_tangent_below: 0.0,
         }
     }
 }
@@ -74,8 +88,11 @@ impl Default for StaticOptions {
 /// What a converged static solve did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StaticReport {
-    /// Newton-like iterations done (assemble + factorise + solve each).
+    /// Newton-like iterations done (a residual and a solve each).
     pub iterations: usize,
+    /// Tangents assembled and factorised (`iterations` unless the tangent was reused, the
+    /// first iteration's possibly carried over from the previous solve).
+    pub factorisations: usize,
     /// Largest nodal update of the last iteration (mm).
     pub max_update_mm: f64,
     /// Total step halvings forced by the inversion guard.
@@ -100,6 +117,11 @@ pub struct StaticSolver<'m> {
     rhs: Vec<f64>,
     trial: Vec<Point3<f64>>,
     tangent_diagonal: Vec<f64>,
+    /// `tangent_diagonal` of the previous solve, to tell whether its tangent carries over.
+    previous_diagonal: Vec<f64>,
+    /// Whether `cholesky` holds a factorised tangent, and if so whether with the pressure's
+    /// stress stiffness.
+    factorised_pressure: Option<bool>,
     /// Converged only when |residual| ≤ this × |load| (the module doc); `None` judges on the
     /// update alone.
     residual_tolerance: Option<f64>,
@@ -128,6 +150,8 @@ impl<'m> StaticSolver<'m> {
             rhs: vec![0.0; model.dof_count()],
             trial: Vec::with_capacity(model.node_count()),
             tangent_diagonal: vec![0.0; model.node_count()],
+            previous_diagonal: vec![0.0; model.node_count()],
+            factorised_pressure: None,
             residual_tolerance: None,
         })
     }
@@ -197,10 +221,15 @@ impl<'m> StaticSolver<'m> {
         options: &StaticOptions,
     ) -> Result<StaticReport, FemError> {
         self.check(loads, options)?;
+        self.previous_diagonal
+            .copy_from_slice(&self.tangent_diagonal);
         self.tangent_diagonal.fill(options.tangent_shift);
         for s in loads.springs {
             self.tangent_diagonal[s.node as usize] += s.stiffness;
         }
+        let carried = options.reuse_tangent_below > 0.0
+            && self.factorised_pressure == Some(pressure.is_some())
+            && self.previous_diagonal == self.tangent_diagonal;
         self.state.update(self.model, x)?;
         if let Some(&first) = self.state.failed_elements().first() {
             return Err(FemError::InvertedState {
@@ -209,29 +238,21 @@ impl<'m> StaticSolver<'m> {
             });
         }
         let mut halvings = 0;
+        let mut factorisations = 0;
+        let mut previous_residual = f64::INFINITY;
         let mut max_update = f64::INFINITY;
         let mut relative_residual = f64::INFINITY;
         for iteration in 1..=options.max_iterations {
             self.residual(x, loads, pressure)?;
-            self.pattern.assemble(
-                self.model,
-                &self.state,
-                1.0,
-                Some(&self.tangent_diagonal),
-                &self.fixed,
-                &mut self.values,
-            )?;
-            if pressure.is_some() {
-                self.pattern.add_membrane_stress_stiffness(
-                    self.model,
-                    x,
-                    &self.state,
-                    1.0,
-                    &self.fixed,
-                    &mut self.values,
-                )?;
+            let residual = self.rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+            let reuse = (factorisations > 0 || carried)
+                && options.reuse_tangent_below > 0.0
+                && residual <= options.reuse_tangent_below * previous_residual;
+            previous_residual = residual;
+            if !reuse {
+                self.factorise_tangent(x, pressure.is_some())?;
+                factorisations += 1;
             }
-            self.cholesky.factorise(self.pattern.matrix(&self.values))?;
             self.cholesky.solve_in_place(&mut self.rhs)?;
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
             halvings += h;
@@ -253,6 +274,7 @@ impl<'m> StaticSolver<'m> {
                     .fold(0.0, f64::max);
                 return Ok(StaticReport {
                     iterations: iteration,
+                    factorisations,
                     max_update_mm: max_update,
                     halvings,
                     max_residual,
@@ -267,6 +289,33 @@ impl<'m> StaticSolver<'m> {
             relative_residual,
             residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
         })
+    }
+
+    /// Assembles the tangent at `x` (state already updated to `x`), with the membranes'
+    /// stress stiffness under a pressure load, and factorises it.
+    fn factorise_tangent(&mut self, x: &[Point3<f64>], pressure: bool) -> Result<(), FemError> {
+        self.pattern.assemble(
+            self.model,
+            &self.state,
+            1.0,
+            Some(&self.tangent_diagonal),
+            &self.fixed,
+            &mut self.values,
+        )?;
+        if pressure {
+            self.pattern.add_membrane_stress_stiffness(
+                self.model,
+                x,
+                &self.state,
+                1.0,
+                &self.fixed,
+                &mut self.values,
+            )?;
+        }
+        self.factorised_pressure = None;
+        self.cholesky.factorise(self.pattern.matrix(&self.values))?;
+        self.factorised_pressure = Some(pressure);
+        Ok(())
     }
 
     fn check(&self, loads: &StaticLoads<'_>, options: &StaticOptions) -> Result<(), FemError> {
@@ -302,6 +351,13 @@ impl<'m> StaticSolver<'m> {
                 what: "tangent_shift (µN/mm)",
                 value: options.tangent_shift,
                 expected: "finite and >= 0",
+            });
+        }
+        if !(0.0..1.0).contains(&options.reuse_tangent_below) {
+            return Err(FemError::InvalidParameter {
+                what: "reuse_tangent_below (residual ratio)",
+                value: options.reuse_tangent_below,
+                expected: "in [0, 1)",
             });
         }
         if !(options.tolerance_mm > 0.0 && options.tolerance_mm.is_finite()) {

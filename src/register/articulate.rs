@@ -353,6 +353,7 @@ pub fn articulated_shape(
         max_iterations: 8,
         max_halvings: 12,
         tangent_shift: 1e-6 * modulus_pa,
+        ..StaticOptions::default()
     };
     match solver.solve_with_springs(&mut x, &springs, &options) {
         Ok(_) | Err(FemError::NotConverged { .. }) | Err(FemError::StepRejected { .. }) => {}

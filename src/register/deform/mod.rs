@@ -195,6 +195,7 @@ pub fn deform(
         max_halvings: 12,
         // keeps each linear solve definite where no spring acts (see StaticOptions)
         tangent_shift: 1e-6 * cfg.regularisation_modulus_pa,
+        ..StaticOptions::default()
     };
     let mut status = DeformStatus::MaxIterations;
     let (mut best_offset, mut stalled) = (f64::INFINITY, 0usize);
