@@ -8,7 +8,8 @@
 //! iterate); each branch (p > 0, p < 0) starts at rest and is loaded incrementally through
 //! its pressures (increments of at most `max_step_pa`), each increment solved to equilibrium
 //! by Newton iterations on the corotational model (warped tangent, inversion guard;
-//! `StaticSolver::solve_with_pressure`). An increment whose Newton iterations fail is undone
+//! `StaticSolver::solve_with_pressure`), the factorised tangent kept for the next iteration
+//! while the residual halves (`reuse_tangent_below`). An increment whose Newton iterations fail is undone
 //! and halved, down to `min_step_pa`; one that fails even then ends its branch: the curve
 //! keeps the points before it and says where and why it stopped (`StaticCurve::failure`), and
 //! the gates on the missing points fail. A registered model that cannot carry the load is a
@@ -30,6 +31,11 @@ pub const GATE_PRESSURES_PA: [f64; 6] = [-4000.0, -2000.0, -1000.0, 1000.0, 2000
 /// Default `UdspOptions::residual_tolerance`.
 const RESIDUAL_TOLERANCE: f64 = 1e-3;
 
+/// Default `UdspOptions::reuse_tangent_below`: on the sample packages' gate curves it halves
+/// the factorisations (case-001: 49 → 23) for a few more iterations (BENCHMARKS.md); 0.3
+/// keeps more factorisations, 0.7 and 0.9 hardly fewer for more iterations.
+const REUSE_TANGENT_BELOW: f64 = 0.5;
+
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UdspOptions {
@@ -50,6 +56,10 @@ pub struct UdspOptions {
     /// Levenberg shift of the tangent (µN/mm, see `StaticOptions::tangent_shift`): a thin
     /// eardrum's out-of-plane tangent is nearly singular where it is not yet tensioned.
     pub tangent_shift: f64,
+    /// Tangent reuse (`StaticOptions::reuse_tangent_below`): a Newton iteration whose
+    /// residual fell to at most this fraction of the previous one keeps the last factorised
+    /// tangent; 0 factorises at every iteration.
+    pub reuse_tangent_below: f64,
 }
 
 impl Default for UdspOptions {
@@ -63,6 +73,7 @@ impl Default for UdspOptions {
             residual_tolerance: RESIDUAL_TOLERANCE,
             max_iterations: 200,
             tangent_shift: 100.0,
+            reuse_tangent_below: REUSE_TANGENT_BELOW,
         }
     }
 }
@@ -133,6 +144,13 @@ pub fn static_pressure_curve(
             });
         }
     }
+    if !(0.0..1.0).contains(&options.reuse_tangent_below) {
+        return Err(MechanicsError::InvalidOption {
+            what: "tangent reuse (residual ratio)",
+            value: options.reuse_tangent_below,
+            expected: "in [0, 1)",
+        });
+    }
     if let Some(p) = options.pressures_pa.iter().find(|p| !p.is_finite()) {
         return Err(MechanicsError::InvalidOption {
             what: "static pressure (Pa)",
@@ -195,6 +213,7 @@ fn solve_branch(
         tolerance_mm: options.tolerance_mm,
         max_iterations: options.max_iterations,
         tangent_shift: options.tangent_shift,
+        reuse_tangent_below: options.reuse_tangent_below,
         ..StaticOptions::default()
     };
     let u0 = system.umbo.position(rest);
