@@ -345,3 +345,26 @@ fn reusing_the_factorised_tangent_reaches_the_fresh_newton_equilibrium() {
         Err(otoatlas::fem::FemError::InvalidParameter { .. })
     ));
 }
+
+#[test]
+fn the_static_curve_rejects_a_tangent_reuse_outside_0_to_1() {
+    // checked before any solve: a bad option is the caller's error, not a branch that failed
+    use otoatlas::mechanics::{MechanicalSystem, MechanicsError, UdspOptions};
+    let atlas = otoatlas::atlas::default_atlas().unwrap();
+    let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
+    for bad in [-0.1, 1.0, f64::NAN] {
+        let options = UdspOptions {
+            reuse_tangent_below: bad,
+            ..UdspOptions::default()
+        };
+        let result = otoatlas::mechanics::static_pressure_curve(
+            &system,
+            &options,
+            &otoatlas::progress::Silent,
+        );
+        assert!(
+            matches!(result, Err(MechanicsError::InvalidOption { .. })),
+            "{bad}: {result:?}"
+        );
+    }
+}
