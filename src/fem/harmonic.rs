@@ -32,19 +32,21 @@ pub type ComplexDisplacement = [c64; 3];
 /// dashpots; immutable after construction, so frequencies can be solved in parallel.
 #[derive(Debug)]
 pub struct HarmonicSolver {
-    node_count: usize,
+    pub(super) node_count: usize,
     /// Reduced index → DOF.
-    free: Vec<usize>,
+    pub(super) free: Vec<usize>,
     /// The full (both triangles) reduced pattern with the real stiffness values.
-    stiffness: SparseColMat<usize, f64>,
+    pub(super) stiffness: SparseColMat<usize, f64>,
     /// Position of each reduced DOF's diagonal in the values.
-    diagonal: Vec<usize>,
+    pub(super) diagonal: Vec<usize>,
     /// Lumped mass (g) of each reduced DOF.
-    mass: Vec<f64>,
+    pub(super) mass: Vec<f64>,
     /// The dashpots' entries (g/s) between free DOFs, at their positions in the values.
     dashpot: Vec<(usize, f64)>,
-    rayleigh: Rayleigh,
-    symbolic: SymbolicLu<usize>,
+    /// The same entries as (row, column, value) of the reduced system.
+    pub(super) dashpot_entries: Vec<(usize, usize, f64)>,
+    pub(super) rayleigh: Rayleigh,
+    pub(super) symbolic: SymbolicLu<usize>,
 }
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
@@ -130,6 +132,7 @@ impl HarmonicSolver {
         };
         let diagonal = (0..m).map(|c| position(c, c)).collect();
         let mut dashpot = Vec::with_capacity(9 * dashpots.len());
+        let mut dashpot_entries = Vec::with_capacity(9 * dashpots.len());
         for d in dashpots {
             let block = d.block();
             for i in 0..3 {
@@ -140,6 +143,7 @@ impl HarmonicSolver {
                     );
                     if row != usize::MAX && col != usize::MAX {
                         dashpot.push((position(row, col), block[(i, j)]));
+                        dashpot_entries.push((row, col, block[(i, j)]));
                     }
                 }
             }
@@ -153,37 +157,19 @@ impl HarmonicSolver {
             diagonal,
             mass,
             dashpot,
+            dashpot_entries,
             rayleigh,
             symbolic,
         })
     }
 
-    /// Number of unknowns (free DOFs).
-    pub fn unknowns(&self) -> usize {
-        self.free.len()
-    }
-
-    /// Displacement amplitudes (mm, per node; zero on fixed DOFs) at angular frequency
-    /// `omega` (rad/s) under real nodal force amplitudes `force` (µN, one per node).
-    pub fn solve(
+    /// Factorises the system at angular frequency `omega` (rad/s) and gives `body` the solve
+    /// with it (in place, over the free DOFs).
+    pub(super) fn with_factor<R>(
         &self,
         omega: f64,
-        force: &[Vector3<f64>],
-    ) -> Result<Vec<ComplexDisplacement>, FemError> {
-        if force.len() != self.node_count {
-            return Err(FemError::LengthMismatch {
-                what: "harmonic force",
-                expected: self.node_count,
-                found: force.len(),
-            });
-        }
-        if !(omega.is_finite() && omega >= 0.0) {
-            return Err(FemError::InvalidParameter {
-                what: "angular frequency (rad/s)",
-                value: omega,
-                expected: "finite and >= 0",
-            });
-        }
+        body: impl FnOnce(&mut dyn FnMut(&mut [c64])) -> Result<R, FemError>,
+    ) -> Result<R, FemError> {
         let beta = self.rayleigh.stiffness;
         let mut values: Vec<c64> = self
             .stiffness
@@ -215,18 +201,52 @@ impl HarmonicSolver {
                 Default::default(),
             )
             .map_err(|e| faer_error("harmonic numeric LU", e))?;
+        let m = self.free.len();
+        body(&mut |rhs: &mut [c64]| {
+            lu.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(rhs, m, 1),
+                par,
+                MemStack::new(&mut mem),
+            )
+        })
+    }
+
+    /// Number of unknowns (free DOFs).
+    pub fn unknowns(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Displacement amplitudes (mm, per node; zero on fixed DOFs) at angular frequency
+    /// `omega` (rad/s) under real nodal force amplitudes `force` (µN, one per node).
+    pub fn solve(
+        &self,
+        omega: f64,
+        force: &[Vector3<f64>],
+    ) -> Result<Vec<ComplexDisplacement>, FemError> {
+        if force.len() != self.node_count {
+            return Err(FemError::LengthMismatch {
+                what: "harmonic force",
+                expected: self.node_count,
+                found: force.len(),
+            });
+        }
+        if !(omega.is_finite() && omega >= 0.0) {
+            return Err(FemError::InvalidParameter {
+                what: "angular frequency (rad/s)",
+                value: omega,
+                expected: "finite and >= 0",
+            });
+        }
         let mut rhs: Vec<c64> = self
             .free
             .iter()
             .map(|&d| c64::new(force[d / 3][d % 3], 0.0))
             .collect();
-        let m = rhs.len();
-        lu.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut rhs, m, 1),
-            par,
-            MemStack::new(&mut mem),
-        );
+        self.with_factor(omega, |solve| {
+            solve(&mut rhs);
+            Ok(())
+        })?;
         let mut out = vec![[c64::new(0.0, 0.0); 3]; self.node_count];
         for (&d, u) in self.free.iter().zip(&rhs) {
             if !(u.re.is_finite() && u.im.is_finite()) {

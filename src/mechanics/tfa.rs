@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use super::boundary::MechanicalSystem;
 use super::error::MechanicsError;
-use crate::fem::{HarmonicSolver, PressureLoad};
+use crate::fem::{ComplexDisplacement, HarmonicSolver, PressureLoad, SweepOptions};
 use crate::progress::Reporter;
 
 /// The source study's sound pressure: 90 dB SPL re 20 µPa, in Pa rms.
@@ -40,6 +40,10 @@ pub struct TfaOptions {
     pub drive: Drive,
     /// Drive pressure (Pa); the response is linear, so it only scales the displacements.
     pub drive_pa: f64,
+    /// How the frequencies are solved: from one reduced model checked on the full system at
+    /// each frequency (`fem::SweepOptions`, the default), or `None`: one complex sparse LU per
+    /// frequency.
+    pub reduced: Option<SweepOptions>,
 }
 
 impl Default for TfaOptions {
@@ -48,6 +52,7 @@ impl Default for TfaOptions {
             frequencies_hz: third_octaves(250.0, 8000.0),
             drive: Drive::Eardrum,
             drive_pa: DRIVE_PA,
+            reduced: Some(SweepOptions::default()),
         }
     }
 }
@@ -148,8 +153,39 @@ fn drive_forces(system: &MechanicalSystem, drive: Drive, p: f64) -> Vec<Vector3<
     f
 }
 
-/// The stapes velocity transfer function of `system` (frequencies solved in parallel), each
-/// frequency solved reported to `progress`.
+/// The piston velocity of the footplate and the umbo's medial velocity (µm/s per Pa of drive)
+/// of the displacement amplitudes `u` at angular frequency `omega`.
+fn response(
+    system: &MechanicalSystem,
+    u: &[ComplexDisplacement],
+    omega: f64,
+    drive_pa: f64,
+) -> (c64, c64) {
+    let along = |v: u32, w: f64, n: &Vector3<f64>| {
+        let d = u[v as usize];
+        (d[0] * n.x + d[1] * n.y + d[2] * n.z) * w
+    };
+    let n = system.footplate_normal;
+    let piston = system
+        .footplate
+        .iter()
+        .map(|&(v, w)| along(v, w, &n))
+        .sum::<c64>();
+    let umbo = system
+        .umbo
+        .nodes
+        .iter()
+        .zip(&system.umbo.weights)
+        .map(|(&v, &w)| along(v, w, &system.medial))
+        .sum::<c64>();
+    // velocity = iω û (mm/s) → µm/s per Pa of drive
+    let to_velocity = c64::new(0.0, omega * 1e3 / drive_pa);
+    (piston * to_velocity, umbo * to_velocity)
+}
+
+/// The stapes velocity transfer function of `system` (`options.reduced`: one reduced model
+/// for all frequencies, or the frequencies solved directly in parallel), reported to
+/// `progress`.
 pub fn transfer_function(
     system: &MechanicalSystem,
     options: &TfaOptions,
@@ -182,45 +218,50 @@ pub fn transfer_function(
     )
     .map_err(MechanicsError::solve("harmonic system"))?;
     let force = drive_forces(system, options.drive, options.drive_pa);
-    let n = system.footplate_normal;
-    let task = progress.task("TFA", options.frequencies_hz.len() as u64);
-    let responses: Vec<(c64, c64)> = options
+    let count = options.frequencies_hz.len();
+    let task = progress.task("TFA", count as u64);
+    let omegas: Vec<f64> = options
         .frequencies_hz
-        .par_iter()
-        .map(|&f| {
-            let omega = 2.0 * std::f64::consts::PI * f;
-            let u = solver
-                .solve(omega, &force)
-                .map_err(MechanicsError::solve(format!("harmonic solve at {f} Hz")))?;
-            let piston = system
-                .footplate
-                .iter()
-                .map(|&(v, w)| {
-                    let d = u[v as usize];
-                    (d[0] * n.x + d[1] * n.y + d[2] * n.z) * w
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f)
+        .collect();
+    let (displacements, how) = match &options.reduced {
+        Some(sweep) => {
+            let s = solver
+                .sweep(&omegas, &force, sweep)
+                .map_err(MechanicsError::solve("harmonic sweep"))?;
+            task.inc(count as u64);
+            let r = &s.report;
+            let how = format!(
+                "a reduced model of {} from {} factorisations, largest relative residual {:.1e}, {} solved directly",
+                r.basis_size,
+                r.shifts_hz.len(),
+                r.max_relative_residual,
+                r.direct_solves
+            );
+            (s.responses, how)
+        }
+        None => {
+            let u = omegas
+                .par_iter()
+                .zip(&options.frequencies_hz)
+                .map(|(&omega, f)| {
+                    let u = solver
+                        .solve(omega, &force)
+                        .map_err(MechanicsError::solve(format!("harmonic solve at {f} Hz")));
+                    task.inc(1);
+                    u
                 })
-                .sum::<c64>();
-            let m = system.medial;
-            let umbo = system
-                .umbo
-                .nodes
-                .iter()
-                .zip(&system.umbo.weights)
-                .map(|(&v, &w)| {
-                    let d = u[v as usize];
-                    (d[0] * m.x + d[1] * m.y + d[2] * m.z) * w
-                })
-                .sum::<c64>();
-            // velocity = iω û (mm/s) → µm/s per Pa of drive
-            let to_velocity = c64::new(0.0, omega * 1e3 / options.drive_pa);
-            task.inc(1);
-            Ok((piston * to_velocity, umbo * to_velocity))
-        })
-        .collect::<Result<_, MechanicsError>>()?;
-    task.finish(&format!(
-        "{} frequencies solved",
-        options.frequencies_hz.len()
-    ));
+                .collect::<Result<Vec<_>, MechanicsError>>()?;
+            (u, "one factorisation each".to_string())
+        }
+    };
+    task.finish(&format!("{count} frequencies solved ({how})"));
+    let responses: Vec<(c64, c64)> = omegas
+        .iter()
+        .zip(&displacements)
+        .map(|(&omega, u)| response(system, u, omega, options.drive_pa))
+        .collect();
     let mut points = Vec::with_capacity(responses.len());
     let mut previous: Option<f64> = None;
     for (&f, (h, umbo)) in options.frequencies_hz.iter().zip(&responses) {
