@@ -429,6 +429,7 @@ fn reduced_sweep_matches_the_direct_solves_through_resonances() {
         .collect();
     let options = SweepOptions {
         residual_tolerance: 1e-8,
+        moments_per_shift: 4,
         ..SweepOptions::default()
     };
     let sweep = solver.sweep(&omegas, &force, &options).unwrap();
