@@ -76,7 +76,7 @@ fn same_verdict_as_direct(case: &str, mechanics: &serde_json::Value, tf: &Transf
 }
 
 #[test]
-#[ignore = "heavy: runs the three sample cases and their transfer functions, 70 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: runs the three sample cases and their transfer functions, 40 s in debug; scripts/test.sh runs it"]
 fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
     let reference = direct_tf(&default_atlas().unwrap());
     let (reference_peak, _) = reference.peak().unwrap();
