@@ -76,7 +76,7 @@ fn validate_rejects_a_bad_eardrum_bending_thickness() {
 }
 
 #[test]
-#[ignore = "heavy: the atlas's whole validation, 25 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: the atlas's whole validation, 6 s in debug; scripts/test.sh runs it"]
 fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
     // stderr is a pipe here, as in CI or a batch log: plain log lines instead of bars
     let out = otoatlas(&["validate"]);
