@@ -14,6 +14,7 @@ use otoatlas::fem::{
     StaticSolver, SweepOptions, TetMaterial,
 };
 use otoatlas::mesh::shapes::icosphere;
+use otoatlas::mesh::surface::TriMesh;
 
 fn tet_model(nodes: &[Point3<f64>], tets: &[[u32; 4]], mat: TetMaterial) -> FemModel {
     let index = vec![0; tets.len()];
@@ -230,10 +231,12 @@ fn membrane_model(nodes: &[Point3<f64>], tris: &[[u32; 3]], mat: MembraneMateria
     .unwrap()
 }
 
-#[test]
-fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() {
-    let radius = 4.0;
-    let sphere = icosphere(Point3::origin(), radius, 3);
+/// A closed spherical membrane of radius `SPHERE_RADIUS` (icosphere, 3 subdivisions) held
+/// only against rigid motion: the mesh, its material, its model and its fixed DOFs.
+const SPHERE_RADIUS: f64 = 4.0;
+
+fn membrane_sphere() -> (TriMesh, MembraneMaterial, FemModel, FixedDofs) {
+    let sphere = icosphere(Point3::origin(), SPHERE_RADIUS, 3);
     let mat = MembraneMaterial {
         youngs_modulus: 3.0e7,
         poisson_ratio: 0.3,
@@ -243,6 +246,13 @@ fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() 
     };
     let model = membrane_model(&sphere.vertices, &sphere.triangles, mat);
     let fixed = symmetry_dofs(&sphere.vertices);
+    (sphere, mat, model, fixed)
+}
+
+#[test]
+fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() {
+    let radius = SPHERE_RADIUS;
+    let (sphere, mat, model, fixed) = membrane_sphere();
     let pressure = 100.0;
     // Laplace: σ = pR/(2h) in every direction; radial strain (1 − ν)σ/E
     let exact = pressure * radius * radius * (1.0 - mat.poisson_ratio)
@@ -302,17 +312,7 @@ fn reusing_the_factorised_tangent_reaches_the_fresh_newton_equilibrium() {
     // `reuse_tangent_below` keeps the last factorisation. Same equilibrium, fewer
     // factorisations; at 0 every iteration factorises (the default). A second increment on the
     // same solver (to 2.4 kPa) starts with the tangent the first one ended with.
-    let radius = 4.0;
-    let sphere = icosphere(Point3::origin(), radius, 3);
-    let mat = MembraneMaterial {
-        youngs_modulus: 3.0e7,
-        poisson_ratio: 0.3,
-        thickness: 0.05,
-        bending_thickness: None,
-        density: 1.2e-3,
-    };
-    let model = membrane_model(&sphere.vertices, &sphere.triangles, mat);
-    let fixed = symmetry_dofs(&sphere.vertices);
+    let (sphere, _, model, fixed) = membrane_sphere();
     let load = |pressure| PressureLoad {
         triangles: &sphere.triangles,
         pressure,
