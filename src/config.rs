@@ -46,6 +46,9 @@ pub struct Config {
     pub articulate: crate::register::articulate::ArticulateConfig,
     pub deform: crate::register::deform::DeformConfig,
     pub refine: crate::register::refine::RefineConfig,
+    /// The chain search of `landmarks --auto` and `run --auto-landmarks`.
+    #[serde(default)]
+    pub auto_landmarks: crate::register::chain_search::SearchConfig,
     pub validate: ValidateConfig,
 }
 
@@ -173,6 +176,20 @@ impl Config {
             ("articulate.tolerance_mm", self.articulate.tolerance_mm),
             ("refine.smoothness", self.refine.smoothness),
             ("refine.search_range_mm", self.refine.search_range_mm),
+            (
+                "auto_landmarks.coarse_spacing_mm",
+                self.auto_landmarks.coarse_spacing_mm,
+            ),
+            ("auto_landmarks.min_score", self.auto_landmarks.min_score),
+            ("auto_landmarks.max_voxel_mm", self.auto_landmarks.max_voxel_mm),
+            (
+                "auto_landmarks.rotations",
+                self.auto_landmarks.rotations as f64,
+            ),
+            (
+                "auto_landmarks.candidates",
+                self.auto_landmarks.candidates as f64,
+            ),
         ] {
             positive(field, v)?;
         }

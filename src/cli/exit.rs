@@ -42,6 +42,15 @@ pub fn exit_status(err: &Error) -> ExitStatus {
             crate::register::deform::DeformError::Fem(_) => ExitStatus::CaseFailed,
             crate::register::deform::DeformError::NothingFound => ExitStatus::BadInput,
         },
+        // no chain in the image is the input's fault; a failed registration of the chain found
+        // is the case's
+        Error::Propose(e) => match e {
+            crate::register::auto_landmarks::ProposeError::Search(_) => ExitStatus::BadInput,
+            crate::register::auto_landmarks::ProposeError::Register(
+                crate::register::deform::DeformError::NothingFound,
+            ) => ExitStatus::BadInput,
+            crate::register::auto_landmarks::ProposeError::Register(_) => ExitStatus::CaseFailed,
+        },
         Error::Export(e) => match e {
             crate::export::ExportError::File(_) | crate::export::ExportError::Serialise { .. } => {
                 ExitStatus::CaseFailed

@@ -1,4 +1,5 @@
-//! `otoatlas landmarks`: type the three landmarks of a case at a prompt and save them.
+//! `otoatlas landmarks`: type the three landmarks of a case at a prompt and save them, or have
+//! them proposed from the image (`--auto`).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -10,10 +11,12 @@ use super::Report;
 use super::out_arg::check_out_file;
 use crate::Error;
 use crate::config::Config;
-use crate::ear::{Side, write_fcsv, write_json};
+use crate::ear::{LandmarkName, Side, write_fcsv, write_json};
 use crate::image::{self, Sampler};
 use crate::io_util::write_atomic;
 use crate::pipeline::Case;
+use crate::pipeline::auto_landmarks::{proposal_files, proposal_record, propose};
+use crate::register::auto_landmarks::SideSource;
 use crate::progress::Reporter;
 use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
 
@@ -27,7 +30,14 @@ On a pipe, one answer per line.
 
 Examples:
   otoatlas landmarks sample_cases/case-001
-  printf '1 2 3\\nv 10 20 30\\n4 5 6\\n' | otoatlas landmarks scan.nii.gz --out picks.fcsv"
+  printf '1 2 3\\nv 10 20 30\\n4 5 6\\n' | otoatlas landmarks scan.nii.gz --out picks.fcsv
+  otoatlas landmarks sample_cases/case-001 --auto --out proposed.fcsv
+
+With --auto the chain is searched for in the image over every orientation and both sides, the
+atlas registered onto it, and the landmarks read off the registered atlas; the files say so,
+with a confidence per landmark (the share of the bone surface within 2 mm that the image
+confirms) and the search's figures in the .json. A case whose image holds no ossicular chain
+fails with exit code 2."
 )]
 pub struct LandmarksArgs {
     /// The case folder (or a bare image).
@@ -36,6 +46,12 @@ pub struct LandmarksArgs {
     /// Default: CASE/landmarks.fcsv and CASE/landmarks.json.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Propose the landmarks from the image instead of asking for them.
+    #[arg(long)]
+    pub auto: bool,
+    /// The atlas to search for and register (default: the embedded atlas); with --auto.
+    #[arg(long, value_name = "DIR", requires = "auto")]
+    pub atlas: Option<PathBuf>,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -75,6 +91,9 @@ pub fn run(
             case.image.display()
         ))
     })?;
+    if args.auto {
+        return propose_and_write(args, &case, &loaded, &sampler, &config, (&fcsv, &json_path), progress);
+    }
     let input = if std::io::stdin().is_terminal() {
         prompt_landmarks(PromptInput::Terminal, &sampler)?
     } else {
@@ -123,4 +142,68 @@ pub fn run(
     });
     let text = format!("wrote {} and {}\n", fcsv.display(), json_path.display());
     Ok(Report { text, json })
+}
+
+/// `--auto`: the proposal written as `.fcsv`, `.mrk.json` and `.json`.
+fn propose_and_write(
+    args: &LandmarksArgs,
+    case: &Case,
+    loaded: &image::LoadedImage,
+    sampler: &Sampler,
+    config: &Config,
+    (fcsv, json_path): (&Path, &Path),
+    progress: &dyn Reporter,
+) -> Result<Report, Error> {
+    progress.log(&format!("{}: proposing the landmarks from the image", case.id));
+    let proposal = propose(loaded, sampler, args.atlas.as_deref(), config, progress)?;
+    let (fcsv_text, mrk_text, json_text) = proposal_files(&proposal);
+    let mrk = mrk_path(fcsv);
+    write_atomic(fcsv, fcsv_text.as_bytes())?;
+    write_atomic(&mrk, mrk_text.as_bytes())?;
+    write_atomic(json_path, json_text.as_bytes())?;
+    let mut text = String::new();
+    for name in LandmarkName::ALL {
+        let p = proposal.landmarks.get(name);
+        text.push_str(&format!(
+            "{:<16} ({:8.3}, {:8.3}, {:8.3}) mm LPS, confidence {:.2}\n",
+            name.key(),
+            p.x,
+            p.y,
+            p.z,
+            proposal.support_of(name).confidence
+        ));
+    }
+    text.push_str(&format!(
+        "{} ear (from the {}; the mirrored chain fits {:.0} % worse), found in {:.2} s, registered in {:.2} s\nwrote {}, {} and {}\n",
+        proposal.side.as_str(),
+        match proposal.side_source {
+            SideSource::DicomLaterality => "DICOM laterality",
+            SideSource::Handedness => "chain's handedness in the image",
+        },
+        100.0 * proposal.search.side_margin,
+        proposal.search.seconds,
+        proposal.register_seconds,
+        fcsv.display(),
+        mrk.display(),
+        json_path.display()
+    ));
+    let json = json!({
+        "fcsv": fcsv,
+        "mrk_json": mrk,
+        "json": json_path,
+        "side": proposal.side.as_str(),
+        "landmarks": {
+            "umbo": proposal.landmarks.umbo.coords.as_slice(),
+            "incudomalleolar": proposal.landmarks.incudomalleolar.coords.as_slice(),
+            "incudostapedial": proposal.landmarks.incudostapedial.coords.as_slice(),
+        },
+        "proposal": proposal_record(&proposal),
+    });
+    Ok(Report { text, json })
+}
+
+/// The `.mrk.json` beside a `.fcsv`.
+fn mrk_path(fcsv: &Path) -> PathBuf {
+    let stem = fcsv.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    fcsv.with_file_name(format!("{stem}.mrk.json"))
 }

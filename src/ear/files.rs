@@ -432,18 +432,25 @@ fn fmt(v: f64) -> String {
 /// Slicer markups `.fcsv` text (LPS). The orientation columns are a quaternion w,x,y,z: the
 /// identity is `1,0,0,0`, as Slicer writes it.
 pub fn write_fcsv(l: &Landmarks) -> String {
+    write_fcsv_described(l, &Default::default())
+}
+
+/// [`write_fcsv`] with a description per landmark (the `desc` column; commas become
+/// semicolons, as the column cannot quote them).
+pub fn write_fcsv_described(l: &Landmarks, descriptions: &[String; 3]) -> String {
     let mut s = String::from(
         "# Markups fiducial file version = 4.11\n# CoordinateSystem = LPS\n# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n",
     );
     for (k, name) in LandmarkName::ALL.iter().enumerate() {
         let p = l.get(*name);
         s.push_str(&format!(
-            "{},{},{},{},1,0,0,0,1,1,0,{},,\n",
+            "{},{},{},{},1,0,0,0,1,1,0,{},{},\n",
             k + 1,
             fmt(p.x),
             fmt(p.y),
             fmt(p.z),
-            name.key()
+            name.key(),
+            descriptions[k].replace([',', '\n', '\r'], ";")
         ));
     }
     s
@@ -451,17 +458,26 @@ pub fn write_fcsv(l: &Landmarks) -> String {
 
 /// Slicer markups `.mrk.json` text (LPS).
 pub fn write_mrk_json(l: &Landmarks) -> String {
+    write_mrk_json_described(l, &Default::default())
+}
+
+/// [`write_mrk_json`] with a description per control point (left out where empty).
+pub fn write_mrk_json_described(l: &Landmarks, descriptions: &[String; 3]) -> String {
     let points: Vec<Value> = LandmarkName::ALL
         .iter()
         .enumerate()
         .map(|(k, name)| {
             let p = l.get(*name);
-            json!({
+            let mut point = json!({
                 "id": (k + 1).to_string(),
                 "label": name.key(),
                 "position": [p.x, p.y, p.z],
                 "positionStatus": "defined",
-            })
+            });
+            if !descriptions[k].is_empty() {
+                point["description"] = json!(descriptions[k]);
+            }
+            point
         })
         .collect();
     let doc = json!({
@@ -478,6 +494,16 @@ pub fn write_mrk_json(l: &Landmarks) -> String {
 
 /// Our `landmarks.json` text: LPS mm, and the side when known.
 pub fn write_json(l: &Landmarks, side: Option<Side>) -> String {
+    write_json_with(l, side, serde_json::Map::new())
+}
+
+/// [`write_json`] with further keys after the landmarks (e.g. how they were proposed);
+/// readers ignore them.
+pub fn write_json_with(
+    l: &Landmarks,
+    side: Option<Side>,
+    extra: serde_json::Map<String, Value>,
+) -> String {
     let mut doc = serde_json::Map::new();
     doc.insert("coordinate_system".into(), json!("LPS"));
     doc.insert("units".into(), json!("mm"));
@@ -488,6 +514,7 @@ pub fn write_json(l: &Landmarks, side: Option<Side>) -> String {
         let p = l.get(name);
         doc.insert(name.key().into(), json!([p.x, p.y, p.z]));
     }
+    doc.extend(extra);
     serde_json::to_string_pretty(&Value::Object(doc)).unwrap_or_default() + "\n"
 }
 

@@ -7,7 +7,8 @@ mod landmarks;
 mod side;
 
 pub use files::{
-    LandmarkFile, LandmarkFileError, read_landmarks, write_fcsv, write_json, write_mrk_json,
+    LandmarkFile, LandmarkFileError, read_landmarks, write_fcsv, write_fcsv_described, write_json,
+    write_json_with, write_mrk_json, write_mrk_json_described,
 };
 pub use landmarks::{LandmarkName, Landmarks};
 pub use side::Side;

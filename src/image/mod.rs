@@ -2,6 +2,7 @@
 //! file, in LPS millimetres and Hounsfield units.
 
 pub mod dicom;
+pub mod filter;
 mod error;
 pub mod nifti;
 pub mod sample;

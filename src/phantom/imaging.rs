@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::image::Volume;
+use crate::image::filter::blur_axis;
 
 /// One sample of a tissue field.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -153,34 +154,6 @@ pub fn render(field: &dyn TissueField, grid: &Grid, params: &ImagingParams) -> V
         direction: grid.direction,
         data,
     }
-}
-
-/// Separable Gaussian blur along one index axis (sigma in voxels), edges clamped.
-fn blur_axis(data: &mut [f32], dims: [usize; 3], axis: usize, sigma: f64) {
-    if sigma < 0.05 {
-        return;
-    }
-    let radius = (3.0 * sigma).ceil() as isize;
-    let weights: Vec<f64> = (-radius..=radius)
-        .map(|d| (-(d as f64).powi(2) / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let total: f64 = weights.iter().sum();
-    let weights: Vec<f64> = weights.iter().map(|w| w / total).collect();
-    let strides = [1, dims[0], dims[0] * dims[1]];
-    let len = dims[axis] as isize;
-    let stride = strides[axis];
-    let source = data.to_vec();
-    // every voxel is the start of nothing special: compute each output from the source copy
-    data.par_iter_mut().enumerate().for_each(|(idx, out)| {
-        let pos = ((idx / stride) % dims[axis]) as isize;
-        let base = idx as isize - pos * stride as isize;
-        let mut acc = 0.0;
-        for (w, d) in weights.iter().zip(-radius..=radius) {
-            let q = (pos + d).clamp(0, len - 1);
-            acc += w * source[(base + q * stride as isize) as usize] as f64;
-        }
-        *out = acc as f32;
-    });
 }
 
 /// Noise, cupping, rings and streaks. The rotation axis of the cone beam is the grid's k axis

@@ -35,6 +35,8 @@ pub enum Error {
     Export(#[from] crate::export::ExportError),
     #[error(transparent)]
     Deform(#[from] crate::register::deform::DeformError),
+    #[error(transparent)]
+    Propose(#[from] crate::register::auto_landmarks::ProposeError),
     #[error("{path}: cannot write the report: {source}")]
     Report {
         path: PathBuf,

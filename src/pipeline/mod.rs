@@ -1,6 +1,7 @@
 //! The pipeline: the case folder, the stages of `run` with their artefacts and timings, the
 //! scoring against a manual segmentation, and cohorts (`batch`, each case in a child process, shards, Slurm arrays).
 
+pub mod auto_landmarks;
 pub mod batch;
 pub mod case;
 pub mod case_process;

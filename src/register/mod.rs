@@ -3,6 +3,8 @@
 
 pub mod articulate;
 pub mod atlas_fit;
+pub mod auto_landmarks;
+pub mod chain_search;
 pub mod deform;
 pub mod eardrum;
 pub mod landmarks;

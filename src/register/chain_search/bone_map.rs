@@ -1,0 +1,124 @@
+//! The image as a bone indicator in [0, 1]: 0 for air, fluid and soft tissue, 1 for bone,
+//! from the image's own air and bone levels (CBCT grey values are not calibrated HU, so
+//! fixed thresholds would not carry from one scanner to the next).
+
+use crate::image::Volume;
+
+/// Values taken for the levels: at most this many, evenly strided over the volume.
+const LEVEL_SAMPLES: usize = 1 << 21;
+
+/// The image's air and bone levels: its 1st and 99.5th percentiles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Levels {
+    pub air: f64,
+    pub bone: f64,
+}
+
+impl Levels {
+    /// The levels of `volume`; `None` when it holds no finite value.
+    pub fn of(volume: &Volume) -> Option<Levels> {
+        let stride = (volume.data.len() / LEVEL_SAMPLES).max(1);
+        let mut values: Vec<f32> = volume
+            .data
+            .iter()
+            .step_by(stride)
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        if values.is_empty() {
+            return None;
+        }
+        let mut at = |q: f64| {
+            let k = ((values.len() - 1) as f64 * q).round() as usize;
+            *values.select_nth_unstable_by(k, f32::total_cmp).1 as f64
+        };
+        Some(Levels {
+            air: at(0.01),
+            bone: at(0.995),
+        })
+    }
+
+    /// The bone indicator of a value: a ramp from 40 % to 55 % of the way from air to bone
+    /// (soft tissue and fluid, 35-42 % of the way on CT's scale, read as 0).
+    pub fn boneness(&self, v: f32) -> f32 {
+        let span = self.bone - self.air;
+        let (lo, hi) = (self.air + 0.4 * span, self.air + 0.55 * span);
+        (((v as f64 - lo) / (hi - lo)).clamp(0.0, 1.0)) as f32
+    }
+}
+
+/// `volume` mapped voxel by voxel through [`Levels::boneness`] (non-finite values read 0).
+pub fn bone_map(volume: &Volume, levels: &Levels) -> Volume {
+    Volume {
+        data: volume
+            .data
+            .iter()
+            .map(|&v| if v.is_finite() { levels.boneness(v) } else { 0.0 })
+            .collect(),
+        ..volume.clone()
+    }
+}
+
+/// A running minimum (`min`) or maximum over a window of `2 r + 1` voxels along `axis`.
+fn running_extreme(v: &mut Volume, axis: usize, r: usize, min: bool) {
+    let dims = v.dims;
+    let stride = [1, dims[0], dims[0] * dims[1]][axis];
+    let len = dims[axis];
+    let source = v.data.clone();
+    for (idx, out) in v.data.iter_mut().enumerate() {
+        let pos = (idx / stride) % len;
+        let base = idx - pos * stride;
+        let (a, b) = (pos.saturating_sub(r), (pos + r).min(len - 1));
+        let values = (a..=b).map(|q| source[base + q * stride]);
+        *out = if min {
+            values.fold(f32::INFINITY, f32::min)
+        } else {
+            values.fold(f32::NEG_INFINITY, f32::max)
+        };
+    }
+}
+
+/// The white top-hat of `v` with a cube of `2 r + 1` voxels: `v` minus its opening (erosion
+/// then dilation). What a cube that size fits inside (the thick bone of the walls and the
+/// otic capsule) is removed; thinner bone (the ossicles, a septum) stays.
+pub fn top_hat(v: &mut Volume, r: usize) {
+    let original = v.data.clone();
+    for axis in 0..3 {
+        running_extreme(v, axis, r, true);
+    }
+    for axis in 0..3 {
+        running_extreme(v, axis, r, false);
+    }
+    for (out, o) in v.data.iter_mut().zip(original) {
+        *out = o - *out;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, Vector3};
+
+    use super::*;
+
+    #[test]
+    fn air_is_zero_bone_is_one_and_soft_tissue_is_zero() {
+        // half air, a little soft tissue, the rest bone
+        let mut data = vec![-1000.0f32; 500];
+        data.extend(vec![40.0f32; 100]);
+        data.extend(vec![1500.0f32; 400]);
+        let volume = Volume {
+            dims: [10, 10, 10],
+            spacing: [0.2; 3],
+            origin: Vector3::zeros(),
+            direction: Matrix3::identity(),
+            data,
+        };
+        let levels = Levels::of(&volume).unwrap();
+        assert_eq!((levels.air, levels.bone), (-1000.0, 1500.0));
+        assert_eq!(levels.boneness(-1000.0), 0.0);
+        assert_eq!(levels.boneness(40.0), 0.0);
+        assert_eq!(levels.boneness(1500.0), 1.0);
+        // the middle of the ramp: 60 % of the way
+        assert!((levels.boneness(500.0) - 0.5).abs() < 1e-6);
+    }
+}
