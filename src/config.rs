@@ -181,7 +181,10 @@ impl Config {
                 self.auto_landmarks.coarse_spacing_mm,
             ),
             ("auto_landmarks.min_score", self.auto_landmarks.min_score),
-            ("auto_landmarks.max_voxel_mm", self.auto_landmarks.max_voxel_mm),
+            (
+                "auto_landmarks.max_voxel_mm",
+                self.auto_landmarks.max_voxel_mm,
+            ),
             (
                 "auto_landmarks.rotations",
                 self.auto_landmarks.rotations as f64,

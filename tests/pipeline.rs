@@ -13,6 +13,7 @@
 mod common;
 
 mod atlas_cli;
+mod auto_landmarks;
 mod batch;
 mod ingest_corpus;
 mod ingest_synthetic;

@@ -55,7 +55,7 @@ fn s(p: &Path) -> &str {
 }
 
 /// One phantom case around `chain` (`otoatlas phantom --anatomy`); returns its folder.
-fn phantom(out: &Path, seed: &str, spacing: &str, side: &str, chain: &Path) -> PathBuf {
+pub(crate) fn phantom(out: &Path, seed: &str, spacing: &str, side: &str, chain: &Path) -> PathBuf {
     run_ok(&[
         "phantom",
         "--out",
@@ -92,7 +92,7 @@ fn sofa_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
 }
 
 /// The CT chain as one fused surface with its landmarks.
-fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
+pub(crate) fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
     let chain = tmp.join("ct455");
     std::fs::create_dir_all(&chain).unwrap();
     std::fs::copy(

@@ -16,8 +16,8 @@ use crate::image::{self, Sampler};
 use crate::io_util::write_atomic;
 use crate::pipeline::Case;
 use crate::pipeline::auto_landmarks::{proposal_files, proposal_record, propose};
-use crate::register::auto_landmarks::SideSource;
 use crate::progress::Reporter;
+use crate::register::auto_landmarks::SideSource;
 use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
 
 /// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel
@@ -92,7 +92,15 @@ pub fn run(
         ))
     })?;
     if args.auto {
-        return propose_and_write(args, &case, &loaded, &sampler, &config, (&fcsv, &json_path), progress);
+        return propose_and_write(
+            args,
+            &case,
+            &loaded,
+            &sampler,
+            &config,
+            (&fcsv, &json_path),
+            progress,
+        );
     }
     let input = if std::io::stdin().is_terminal() {
         prompt_landmarks(PromptInput::Terminal, &sampler)?
@@ -154,7 +162,10 @@ fn propose_and_write(
     (fcsv, json_path): (&Path, &Path),
     progress: &dyn Reporter,
 ) -> Result<Report, Error> {
-    progress.log(&format!("{}: proposing the landmarks from the image", case.id));
+    progress.log(&format!(
+        "{}: proposing the landmarks from the image",
+        case.id
+    ));
     let proposal = propose(loaded, sampler, args.atlas.as_deref(), config, progress)?;
     let (fcsv_text, mrk_text, json_text) = proposal_files(&proposal);
     let mrk = mrk_path(fcsv);
@@ -204,6 +215,9 @@ fn propose_and_write(
 
 /// The `.mrk.json` beside a `.fcsv`.
 fn mrk_path(fcsv: &Path) -> PathBuf {
-    let stem = fcsv.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = fcsv
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     fcsv.with_file_name(format!("{stem}.mrk.json"))
 }

@@ -122,7 +122,10 @@ mod tests {
                     let ijk = fine_world_to_index(p);
                     let expected = ijk.x + 2.0 * ijk.y + 3.0 * ijk.z;
                     let got = coarse.data[coarse.index(i, j, k)] as f64;
-                    assert!((got - expected).abs() < 1e-5, "{i} {j} {k}: {got} vs {expected}");
+                    assert!(
+                        (got - expected).abs() < 1e-5,
+                        "{i} {j} {k}: {got} vs {expected}"
+                    );
                 }
             }
         }
@@ -146,7 +149,9 @@ mod tests {
                 x * x * v.data[v.index(i, 20, 20)] as f64
             })
             .sum::<f64>()
-            / (0..41).map(|i| v.data[v.index(i, 20, 20)] as f64).sum::<f64>();
+            / (0..41)
+                .map(|i| v.data[v.index(i, 20, 20)] as f64)
+                .sum::<f64>();
         assert!((variance.sqrt() - 0.3).abs() < 0.01, "{}", variance.sqrt());
     }
 }

@@ -2,8 +2,8 @@
 //! file, in LPS millimetres and Hounsfield units.
 
 pub mod dicom;
-pub mod filter;
 mod error;
+pub mod filter;
 pub mod nifti;
 pub mod sample;
 mod volume;

@@ -7,8 +7,8 @@ use std::path::Path;
 use serde_json::{Value, json};
 
 use crate::config::Config;
-use crate::ear::{LandmarkName, Side, write_fcsv_described, write_json_with};
 use crate::ear::write_mrk_json_described;
+use crate::ear::{LandmarkName, Side, write_fcsv_described, write_json_with};
 use crate::image::{LoadedImage, Sampler};
 use crate::pipeline::Error;
 use crate::progress::Reporter;

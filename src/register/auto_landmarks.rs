@@ -64,7 +64,10 @@ pub struct Proposal {
 impl Proposal {
     /// The support of `name`.
     pub fn support_of(&self, name: LandmarkName) -> LandmarkSupport {
-        let k = LandmarkName::ALL.iter().position(|n| *n == name).unwrap_or(0);
+        let k = LandmarkName::ALL
+            .iter()
+            .position(|n| *n == name)
+            .unwrap_or(0);
         self.support[k]
     }
 }

@@ -53,7 +53,13 @@ pub fn bone_map(volume: &Volume, levels: &Levels) -> Volume {
         data: volume
             .data
             .iter()
-            .map(|&v| if v.is_finite() { levels.boneness(v) } else { 0.0 })
+            .map(|&v| {
+                if v.is_finite() {
+                    levels.boneness(v)
+                } else {
+                    0.0
+                }
+            })
             .collect(),
         ..volume.clone()
     }
@@ -118,7 +124,7 @@ mod tests {
         assert_eq!(levels.boneness(-1000.0), 0.0);
         assert_eq!(levels.boneness(40.0), 0.0);
         assert_eq!(levels.boneness(1500.0), 1.0);
-        // the middle of the ramp: 60 % of the way
-        assert!((levels.boneness(500.0) - 0.5).abs() < 1e-6);
+        // the middle of the ramp: 47.5 % of the way
+        assert!((levels.boneness(187.5) - 0.5).abs() < 1e-6);
     }
 }

@@ -114,7 +114,11 @@ impl Correlator {
     }
 
     fn transform(&self, data: &mut [Complex32], inverse: bool) {
-        let plans = if inverse { &self.inverse } else { &self.forward };
+        let plans = if inverse {
+            &self.inverse
+        } else {
+            &self.forward
+        };
         for (axis, plan) in plans.iter().enumerate() {
             fft_axis(data, self.n, axis, plan.as_ref());
         }
@@ -246,7 +250,8 @@ mod tests {
             .collect();
         let mut buffer = Vec::new();
         let along_x = Matrix3::identity();
-        let (score, centre) = correlator.best_translations(&points, &along_x, 1.0, 1, &mut buffer)[0];
+        let (score, centre) =
+            correlator.best_translations(&points, &along_x, 1.0, 1, &mut buffer)[0];
         assert!((centre - blob).norm() < 0.3, "{centre} vs {blob}");
         let direct: f64 = points
             .iter()

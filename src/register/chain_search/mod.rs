@@ -1,23 +1,26 @@
 //! Finding the ossicular chain in an image without landmarks: where it is, how it is turned,
 //! and which ear it is.
 //!
-//! The ossicles are the densest small structures in an air-filled cavity, so the atlas's
-//! ossicle surfaces are searched for as bone edges: a template of point pairs, one just
-//! inside each patch of bone surface (weight +a) and one just outside (weight −a), scores
-//! bone inside and air outside, and scores 0 in solid bone and in air alike.
+//! The ossicles are the densest small structures in an air-filled cavity, so the atlas chain
+//! is searched for in the image's bone map (0 for air and soft tissue, 1 for bone, from the
+//! image's own levels) as a template: +1 inside the chain (bones and joints as one solid), -1
+//! in a thin shell outside it, each part normalised, so that bone inside and air around score
+//! up to 1, and solid bone or air score 0.
 //!
-//! 1. Coarse: the image's bone map, smoothed, on a 1 mm grid; the template is turned through
-//!    rotations spread over all of SO(3) (the super-Fibonacci spiral) and, for each, scored
-//!    at every translation at once by FFT cross-correlation (`correlate`). Both sides are
-//!    searched: the left template is the mirror image of the right, and no proper rotation
-//!    turns one into the other.
-//! 2. The best distinct poses of each side (at least a set distance or angle apart) are
-//!    refined by a pattern search over rotation, translation and scale, first on the smoothed
-//!    map, then on a sharper one.
+//! 1. Coarse: the bone map on a 0.5 mm grid, without the bone thicker than 2.5 mm (a
+//!    top-hat: the walls and the otic capsule, which would otherwise pass for the chain's
+//!    bulk), slightly smoothed. The template is turned through rotations spread over all of
+//!    SO(3) (the super-Fibonacci spiral) and, for each, scored at every translation at once
+//!    by FFT cross-correlation (`correlate`); each rotation's best local maxima are kept.
+//!    Both sides are searched: the left template is the mirror image of the right, and no
+//!    rotation turns one into the other.
+//! 2. The best distinct poses of each side (2 mm or 30° apart) are refined by a compass
+//!    search over rotation, translation and scale on the coarse map, and the best of those
+//!    again on a sharp map at the image's resolution.
 //! 3. The best refined pose of each side; the better side wins, and the margin between the
-//!    two sides' scores is the handedness's confidence.
+//!    two sides' scores is the handedness's evidence. Below `min_score` no chain was found.
 //!
-//! The result is a similarity transform of the atlas onto the image, the start the
+//! The result is a similarity transform of the atlas onto the image: the start that the
 //! registration otherwise takes from three picked landmarks.
 
 mod bone_map;
@@ -37,8 +40,8 @@ use crate::atlas::Atlas;
 use crate::ear::Side;
 use crate::image::filter::{downsample, gaussian_blur};
 use crate::image::{Sampler, Volume};
-use crate::progress::Reporter;
 use crate::mesh::spatial::SignedSurface;
+use crate::progress::Reporter;
 use crate::register::probes::probe_triangles;
 use crate::register::rigid::SimilarityTransform;
 
@@ -53,7 +56,7 @@ pub struct SearchConfig {
     pub coarse_spacing_mm: f64,
     /// Distinct coarse poses refined per side.
     pub candidates: usize,
-    /// The least refined score that counts as a chain found \[fraction of a perfect edge\].
+    /// The least refined score that counts as a chain found \[1 for a perfect edge\].
     pub min_score: f64,
     /// The coarsest image searched \[mm, smallest voxel spacing\].
     pub max_voxel_mm: f64,
@@ -65,7 +68,7 @@ impl Default for SearchConfig {
             rotations: 600,
             coarse_spacing_mm: 0.5,
             candidates: 32,
-            min_score: 0.3,
+            min_score: 0.45,
             max_voxel_mm: 0.5,
         }
     }
@@ -122,11 +125,18 @@ impl Template {
     /// +1 at the points inside it, -1 at those in the shell `shell` mm outside it, each set
     /// normalised to a total weight of 1; offsets from `centre`. `None` when the chain's
     /// surface cannot be indexed.
-    fn of(atlas: &Atlas, centre: &Point3<f64>, lattice: f64, shell: (f64, f64)) -> Option<Template> {
-        let surface = SignedSurface::new(&atlas.chain_surface(atlas.nodes()), "atlas chain").ok()?;
+    fn of(
+        atlas: &Atlas,
+        centre: &Point3<f64>,
+        lattice: f64,
+        shell: (f64, f64),
+    ) -> Option<Template> {
+        let surface =
+            SignedSurface::new(&atlas.chain_surface(atlas.nodes()), "atlas chain").ok()?;
         let (lo, hi) = surface.bounds();
         let lo = lo.coords - Vector3::repeat(shell.1);
-        let n = ((hi.coords + Vector3::repeat(shell.1) - lo) / lattice).map(|v| v.ceil() as usize + 1);
+        let n =
+            ((hi.coords + Vector3::repeat(shell.1) - lo) / lattice).map(|v| v.ceil() as usize + 1);
         let lattice_points: Vec<Vector3<f64>> = (0..n.z)
             .flat_map(|k| (0..n.y).flat_map(move |j| (0..n.x).map(move |i| (i, j, k))))
             .map(|(i, j, k)| lo + Vector3::new(i as f64, j as f64, k as f64) * lattice)
@@ -173,6 +183,10 @@ impl Template {
 /// crura) stay, and they are what tells the chain's orientation \[mm\].
 const THICK_MM: f64 = 2.5;
 
+/// The least difference between the image's bone and air levels \[image units; HU: air is
+/// -1000, the ossicles about 1000-1500\].
+const MIN_CONTRAST: f64 = 200.0;
+
 /// Coarse-refined candidates refined again on the sharp map, per side.
 const FINE_CANDIDATES: usize = 8;
 
@@ -216,7 +230,13 @@ const SCALE_RANGE: (f64, f64) = (0.8, 1.25);
 /// Compass search: each of the seven moves (three turns about the chain's centre, three
 /// shifts, the scale) tried both ways; any gain is taken, and when none is left every step is
 /// halved, down to `last`'s angle.
-fn refine(template: &Template, level: &Sampler, start: Pose, first: Steps, last: f64) -> (Pose, f64) {
+fn refine(
+    template: &Template,
+    level: &Sampler,
+    start: Pose,
+    first: Steps,
+    last: f64,
+) -> (Pose, f64) {
     let mut pose = start;
     let mut best = template.score(level, &pose);
     let mut steps = first;
@@ -315,7 +335,10 @@ fn level(bone: &Volume, spacing: f64, thick_mm: Option<f64>, sigma: f64) -> Volu
 /// The world box of the image's voxel centres.
 fn world_box(volume: &Volume) -> (Vector3<f64>, Vector3<f64>) {
     let d = volume.dims.map(|n| n.saturating_sub(1) as f64);
-    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
     for corner in 0..8 {
         let ijk = Vector3::from_fn(|a, _| if (corner >> a) & 1 == 1 { d[a] } else { 0.0 });
         let p = volume.index_to_world(ijk);
@@ -334,7 +357,7 @@ pub fn search_chain(
 ) -> Result<ChainSearch, SearchError> {
     let clock = Instant::now();
     let voxel = volume.spacing.iter().copied().fold(f64::INFINITY, f64::min);
-    if !(voxel <= cfg.max_voxel_mm) {
+    if voxel > cfg.max_voxel_mm || !voxel.is_finite() {
         return Err(SearchError::TooCoarse {
             voxel_mm: voxel,
             max_mm: cfg.max_voxel_mm,
@@ -344,7 +367,7 @@ pub fn search_chain(
         air: f64::NAN,
         bone: f64::NAN,
     })?;
-    if !(levels.bone - levels.air > 200.0) {
+    if levels.bone - levels.air < MIN_CONTRAST {
         return Err(SearchError::NoContrast {
             air: levels.air,
             bone: levels.bone,
@@ -452,7 +475,13 @@ pub fn search_chain(
         let mut refined: Vec<(Pose, f64)> = kept
             .par_iter()
             .map(|start| {
-                refine(&coarse_template, &coarse, *start, coarse_steps, 1f64.to_radians())
+                refine(
+                    &coarse_template,
+                    &coarse,
+                    *start,
+                    coarse_steps,
+                    1f64.to_radians(),
+                )
             })
             .collect();
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -460,7 +489,13 @@ pub fn search_chain(
         let best = refined
             .par_iter()
             .map(|(pose, _)| {
-                refine(&fine_template, &fine, *pose, fine_steps, 0.2f64.to_radians())
+                refine(
+                    &fine_template,
+                    &fine,
+                    *pose,
+                    fine_steps,
+                    0.2f64.to_radians(),
+                )
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
         let (pose, score) = best.unwrap_or((
@@ -482,8 +517,11 @@ pub fn search_chain(
     }
     let (a, b) = (matches[0], matches[1]);
     let (best, other) = if a.score >= b.score { (a, b) } else { (b, a) };
-    if !(best.score >= cfg.min_score) {
-        let atlas = sides.iter().find(|s| s.side == best.side).unwrap_or(&sides[0]);
+    if best.score < cfg.min_score || best.score.is_nan() {
+        let atlas = sides
+            .iter()
+            .find(|s| s.side == best.side)
+            .unwrap_or(&sides[0]);
         let centre = best.atlas_to_image.apply(&chain_centre(atlas.atlas));
         return Err(SearchError::NotFound {
             rotations: rotations.len(),
@@ -504,113 +542,4 @@ pub fn search_chain(
         coarse_spacing_mm: h,
         seconds: clock.elapsed().as_secs_f64(),
     })
-}
-
-#[cfg(test)]
-mod debug_tests {
-    use super::*;
-
-    #[test]
-    #[ignore]
-    fn debug_sample_case() {
-        let case = std::path::PathBuf::from(std::env::var("DEBUG_CASE").unwrap());
-        let loaded = crate::image::load(&case.join("image.nii.gz"), None, &crate::config::Config::default_config().unwrap().ingest).unwrap();
-        let atlas = crate::atlas::load_atlas(None, Some(Side::Right)).unwrap();
-        let truth: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap()).unwrap();
-        let pt = |k: &str| {
-            let a = &truth["landmarks"][k];
-            Point3::new(a[0].as_f64().unwrap(), a[1].as_f64().unwrap(), a[2].as_f64().unwrap())
-        };
-        let lm = crate::ear::Landmarks::from_points([pt("umbo"), pt("incudomalleolar"), pt("incudostapedial")]);
-        let fit = crate::register::atlas_fit::fit_landmarks(&atlas, &lm, true).unwrap();
-        let volume = &loaded.volume;
-        let levels = Levels::of(volume).unwrap();
-        eprintln!("levels {levels:?}");
-        let bone = bone_map::bone_map(volume, &levels);
-        let thick: f64 = std::env::var("DEBUG_THICK").unwrap().parse().unwrap();
-        let coarse_volume = level(&bone, 0.5, (thick > 0.0).then_some(thick), std::env::var("DEBUG_SIGMA").unwrap().parse().unwrap());
-        let fine_volume = level(&bone, volume.spacing[0].max(0.2), None, 0.25);
-        let coarse = Sampler::new(&coarse_volume).unwrap();
-        let fine = Sampler::new(&fine_volume).unwrap();
-        let centre = chain_centre(&atlas);
-        let ev = |k: &str| -> f64 { std::env::var(k).unwrap().parse().unwrap() };
-        let ct = Template::of(&atlas, &centre, 0.5, (ev("DEBUG_S0"), ev("DEBUG_S1"))).unwrap();
-        let ft = Template::of(&atlas, &centre, 0.25, (0.15, 0.5)).unwrap();
-        eprintln!("points {} {} radius {}", ct.points.len(), ft.points.len(), ct.radius);
-        let t = fit.transform;
-        let pose = Pose { rotation: Rotation3::from_matrix_unchecked(t.rotation_matrix()), centre: t.apply(&centre).coords, scale: t.scale };
-        eprintln!("truth pose: coarse {:.3} fine {:.3}", ct.score(&coarse, &pose), ft.score(&fine, &pose));
-        // inner only, outer only
-        let inner: f64 = ft.points.iter().filter(|p| p.1 > 0.0).map(|(p, w)| w * fine.sample(&Point3::from(pose.centre + pose.rotation.matrix() * p * pose.scale)).unwrap_or(-1.0) as f64).sum();
-        let outer: f64 = ft.points.iter().filter(|p| p.1 < 0.0).map(|(p, w)| w * fine.sample(&Point3::from(pose.centre + pose.rotation.matrix() * p * pose.scale)).unwrap_or(-1.0) as f64).sum();
-        eprintln!("inner {inner:.3} outer {outer:.3}");
-        let parts = |t: &Template, lv: &Sampler, pose: &Pose| {
-            let f = |sign: f64| -> f64 { t.points.iter().filter(|p| p.1 * sign > 0.0).map(|(p, w)| w.abs() * lv.sample(&Point3::from(pose.centre + pose.rotation.matrix() * p * pose.scale)).unwrap_or(0.5) as f64).sum() };
-            (f(1.0), f(-1.0))
-        };
-        eprintln!("coarse parts at truth {:?}", parts(&ct, &coarse, &pose));
-        let raw = Sampler::new(volume).unwrap();
-        let bs = Sampler::new(&bone).unwrap();
-        for k in ["umbo", "incudomalleolar", "incudostapedial"] {
-            let p = pt(k);
-            eprintln!("{k}: raw {:?} bone {:?} fine {:?} coarse {:?}", raw.sample(&p), bs.sample(&p), fine.sample(&p), coarse.sample(&p));
-        }
-        let n_in = ct.points.iter().filter(|p| p.1 > 0.0).count();
-        eprintln!("coarse inner points {n_in}, fine inner {}", ft.points.iter().filter(|p| p.1 > 0.0).count());
-        let surf = atlas.chain_surface(atlas.nodes());
-        eprintln!("chain surface volume {:.2} area {:.2}", surf.signed_volume(), surf.area());
-        let (lo, hi) = world_box(volume);
-        eprintln!("box {lo:?} {hi:?} dims {:?}", volume.dims);
-        let t0 = std::time::Instant::now();
-        let corr = Correlator::new(&coarse, (lo, hi), 0.5, ct.radius * 1.25 + 1.0, UNSEEN);
-        eprintln!("grid {} built in {:?}", corr.len(), t0.elapsed());
-        let mut buf = Vec::new();
-        let t0 = std::time::Instant::now();
-        let (s, c) = corr.best_translations(&ct.points, pose.rotation.matrix(), pose.scale, 1, &mut buf)[0];
-        eprintln!("one rotation {:?}", t0.elapsed());
-        eprintln!("fft at truth rotation: {s:.3} at {c:?} (truth centre {:?})", pose.centre);
-        let at = Pose { centre: c, scale: 1.0, ..pose };
-        eprintln!("coarse parts at fft {:?} direct {:.3}", parts(&ct, &coarse, &at), ct.score(&coarse, &at));
-        for dz in [-1.0, 0.0, 1.0] { for dy in [-1.0, 0.0, 1.0] { for dx in [-1.0f64, 0.0, 1.0] {
-            let p = Pose { centre: pose.centre + Vector3::new(dx, dy, dz) * 0.5, ..pose };
-            eprint!("{:.2} ", ct.score(&coarse, &p));
-        }}}
-        eprintln!();
-        let rots = rotations::super_fibonacci(std::env::var("DEBUG_ROT").unwrap().parse().unwrap());
-        let t0 = std::time::Instant::now();
-        let mut found: Vec<(f64, Pose)> = rots.par_iter().map_init(Vec::new, |b, r| {
-            corr.best_translations(&ct.points, r.matrix(), 1.0, 4, b).into_iter().map(|(s, c)|
-            (s, Pose { rotation: *r, centre: c, scale: 1.0 })).collect::<Vec<_>>()
-        }).flatten().collect();
-        eprintln!("600 rotations {:?}", t0.elapsed());
-        found.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let near = found.iter().position(|(_, p)| (p.centre - pose.centre).norm() < 2.0 && (p.rotation.transpose() * pose.rotation).angle() < 25f64.to_radians());
-        let best_rot = found.iter().map(|(_, p)| (p.rotation.transpose() * pose.rotation).angle().to_degrees()).fold(999.0, f64::min);
-        eprintln!("first near truth at rank {near:?} (score {:?}); nearest rotation sampled {best_rot:.1} deg", near.map(|k| found[k].0));
-        let mut kept: Vec<(f64, Pose)> = Vec::new();
-        for (sc, p) in &found {
-            if kept.iter().all(|(_, k)| (k.centre - p.centre).norm() > 2.0 || (k.rotation.transpose() * p.rotation).angle() > 30f64.to_radians()) {
-                kept.push((*sc, *p));
-                if kept.len() == 60 { break; }
-            }
-        }
-        let t0 = std::time::Instant::now();
-        let mut refined: Vec<(f64, Pose, f64, Pose)> = kept.par_iter().map(|(sc, p)| {
-            let (r1, s1) = refine(&ct, &coarse, *p, Steps { angle: 0.17, shift: 0.5, log_scale: 0.05 }, 0.017);
-            (*sc, *p, s1, r1)
-        }).collect();
-        eprintln!("coarse refinement of {} in {:?}", kept.len(), t0.elapsed());
-        refined.sort_by(|a, b| b.2.total_cmp(&a.2));
-        for (rank, (sc, p, s1, r1)) in refined.iter().take(12).enumerate() {
-            let (sc, p, s1, r1) = (*sc, *p, *s1, *r1);
-            let (r2, s2) = refine(&ft, &fine, r1, Steps { angle: 0.05, shift: 0.3, log_scale: 0.02 }, 0.0035);
-            eprintln!("#{rank} {sc:.3} dist {:.1} angle {:.0} -> coarse {s1:.3} dist {:.1} angle {:.0} -> fine {s2:.3} dist {:.2} angle {:.1}",
-                (p.centre - pose.centre).norm(), (p.rotation.transpose() * pose.rotation).angle().to_degrees(),
-                (r1.centre - pose.centre).norm(), (r1.rotation.transpose() * pose.rotation).angle().to_degrees(),
-                (r2.centre - pose.centre).norm(), (r2.rotation.transpose() * pose.rotation).angle().to_degrees());
-        }
-        let (p2, s2) = refine(&ct, &coarse, pose, Steps { angle: 0.17, shift: 1.0, log_scale: 0.05 }, 0.017);
-        eprintln!("refined from truth: {s2:.3} moved {:.2}", (p2.centre - pose.centre).norm());
-    }
 }

@@ -1,0 +1,126 @@
+//! `otoatlas landmarks --auto`: the three landmarks proposed from the image alone. The cases
+//! are given as bare NIfTI images, which carry no laterality, so the side comes from the
+//! chain's handedness in the image. Truth: each phantom's `truth.json` (the exact landmarks
+//! of its anatomy, before pick noise). Every proposed landmark must be within 0.5 mm of the
+//! truth and the side right; an image without a chain must fail with exit code 2.
+
+use std::path::Path;
+
+use serde_json::Value;
+
+use crate::common::python::run_python;
+use crate::common::{otoatlas, otoatlas_json, root, shared_anatomy};
+use crate::registration_real_anatomy::{ct_chain, phantom};
+
+/// The largest distance of a proposed landmark from the truth \[mm\] (the target).
+const MAX_ERROR_MM: f64 = 0.5;
+
+fn point(v: &Value) -> [f64; 3] {
+    [0, 1, 2].map(|k| v[k].as_f64().unwrap())
+}
+
+/// Proposes the landmarks of `image` and checks them against `truth.json`; returns the worst
+/// distance.
+fn check_proposal(image: &Path, truth: &Path, out: &Path, what: &str) -> f64 {
+    let (code, report) = otoatlas_json(&[
+        "landmarks",
+        image.to_str().unwrap(),
+        "--auto",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{what}: {report}");
+    let truth: Value = serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
+    assert_eq!(report["side"], truth["side"], "{what}: side");
+    // the files say the same as the report
+    let written: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.with_extension("json")).unwrap())
+            .unwrap();
+    let mut worst = 0.0f64;
+    for key in ["umbo", "incudomalleolar", "incudostapedial"] {
+        let (p, t) = (point(&written[key]), point(&truth["landmarks"][key]));
+        let d = (0..3).map(|k| (p[k] - t[k]).powi(2)).sum::<f64>().sqrt();
+        let confidence = written["proposal"]["support"][key]["confidence"]
+            .as_f64()
+            .unwrap();
+        eprintln!("{what}: {key} {d:.3} mm from the truth, confidence {confidence:.2}");
+        assert!(
+            d <= MAX_ERROR_MM,
+            "{what}: {key} is {d:.3} mm from the truth"
+        );
+        worst = worst.max(d);
+    }
+    assert!(
+        std::fs::read_to_string(out)
+            .unwrap()
+            .contains("proposed by otoatlas"),
+        "{what}: the .fcsv says how the landmarks were found"
+    );
+    worst
+}
+
+#[test]
+#[ignore = "heavy: three chain searches and registrations; scripts/test.sh runs it"]
+fn the_sample_cases_landmarks_are_found_within_half_a_millimetre() {
+    let tmp = tempfile::tempdir().unwrap();
+    for case in ["case-001", "case-002", "case-003"] {
+        let dir = root().join("sample_cases").join(case);
+        check_proposal(
+            &dir.join("image.nii.gz"),
+            &dir.join("truth.json"),
+            &tmp.path().join(format!("{case}.fcsv")),
+            case,
+        );
+    }
+}
+
+#[test]
+#[ignore = "heavy: two real-chain phantoms, chain searches and registrations; scripts/test.sh runs it"]
+fn a_real_chains_landmarks_are_found_on_both_sides() {
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let chain = ct_chain(&anatomy, tmp.path());
+    for (seed, spacing, side) in [("101", "0.15", "left"), ("104", "0.3", "right")] {
+        let case = phantom(&tmp.path().join(seed), seed, spacing, side, &chain);
+        check_proposal(
+            &case.join("image.nii.gz"),
+            &case.join("truth.json"),
+            &tmp.path().join(format!("ct-{seed}.fcsv")),
+            &format!("CT chain, seed {seed}, {spacing} mm, {side}"),
+        );
+    }
+}
+
+/// A sample case with its ossicles (and 0.4 mm around them) replaced by air, and a bone block
+/// with an empty air cavity: no chain to find, exit 2 naming what was searched.
+#[test]
+fn an_image_without_ossicles_fails_saying_what_was_searched() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = root().join("sample_cases/case-001");
+    let image = tmp.path().join("no-ossicles.nii.gz");
+    let args = [
+        dir.join("image.nii.gz"),
+        dir.join("segmentation/labels.nii.gz"),
+        image.clone(),
+    ];
+    let Some(removed) = run_python("remove_ossicles.py", &args, &["nibabel", "numpy"]) else {
+        return;
+    };
+    assert!(removed.trim().parse::<usize>().unwrap() > 1000, "{removed}");
+    let out = otoatlas(&[
+        "landmarks",
+        image.to_str().unwrap(),
+        "--auto",
+        "--out",
+        tmp.path().join("p.fcsv").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no ossicular chain found") && stderr.contains("orientations"),
+        "{stderr}"
+    );
+    assert!(!tmp.path().join("p.fcsv").exists());
+}
