@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use otoatlas::config::Config;
-use otoatlas::pipeline::{Case, RunOptions, Stage, run_case};
+use otoatlas::pipeline::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -28,6 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             atlas: None,
             side: None,
             keep_phi: false,
+            auto_landmarks: AutoLandmarks::Never,
         };
         let names: Vec<&str> = Stage::ALL
             .iter()

@@ -17,7 +17,6 @@ use crate::io_util::write_atomic;
 use crate::pipeline::Case;
 use crate::pipeline::auto_landmarks::{proposal_files, proposal_record, propose};
 use crate::progress::Reporter;
-use crate::register::auto_landmarks::SideSource;
 use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
 
 /// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel
@@ -166,7 +165,14 @@ fn propose_and_write(
         "{}: proposing the landmarks from the image",
         case.id
     ));
-    let proposal = propose(loaded, sampler, args.atlas.as_deref(), config, progress)?;
+    let proposal = propose(
+        loaded,
+        sampler,
+        args.atlas.as_deref(),
+        None,
+        config,
+        progress,
+    )?;
     let (fcsv_text, mrk_text, json_text) = proposal_files(&proposal);
     let mrk = mrk_path(fcsv);
     write_atomic(fcsv, fcsv_text.as_bytes())?;
@@ -187,10 +193,7 @@ fn propose_and_write(
     text.push_str(&format!(
         "{} ear (from the {}; the mirrored chain fits {:.0} % worse), found in {:.2} s, registered in {:.2} s\nwrote {}, {} and {}\n",
         proposal.side.as_str(),
-        match proposal.side_source {
-            SideSource::DicomLaterality => "DICOM laterality",
-            SideSource::Handedness => "chain's handedness in the image",
-        },
+        proposal.side_source.describe(),
         100.0 * proposal.search.side_margin,
         proposal.search.seconds,
         proposal.register_seconds,

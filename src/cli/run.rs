@@ -10,7 +10,7 @@ use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::Side;
-use crate::pipeline::{Case, RunOptions, Stage, run_case};
+use crate::pipeline::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::progress::Reporter;
 
 /// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
@@ -40,6 +40,10 @@ pub struct RunArgs {
     /// Landmark file to use instead of the case's (.fcsv, .mrk.json, .json, .csv).
     #[arg(long, value_name = "FILE")]
     pub landmarks: Option<PathBuf>,
+    /// Propose the landmarks from the image (`otoatlas landmarks --auto`) instead of reading
+    /// them; the case's own landmark file is not read.
+    #[arg(long, conflicts_with = "landmarks")]
+    pub auto_landmarks: bool,
     /// Atlas folder instead of the embedded default.
     #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
@@ -73,6 +77,10 @@ pub fn run(
         atlas: args.atlas.clone(),
         side: args.side,
         keep_phi: args.keep_phi,
+        auto_landmarks: match args.auto_landmarks {
+            true => AutoLandmarks::Always,
+            false => AutoLandmarks::Never,
+        },
     };
     let summary = run_case(&case, &opts, &config, progress)?;
     let m = &summary.metrics;

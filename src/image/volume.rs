@@ -63,6 +63,26 @@ impl Volume {
         Some(it.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v))))
     }
 
+    /// The values at quantiles `q` (each in [0, 1]) of the finite voxel values, read from a
+    /// regular subsample of at most `max_samples` voxels; `None` when there is no finite value.
+    pub fn quantiles<const N: usize>(&self, q: [f64; N], max_samples: usize) -> Option<[f32; N]> {
+        let stride = self.data.len().div_ceil(max_samples.max(1)).max(1);
+        let mut values: Vec<f32> = self
+            .data
+            .iter()
+            .step_by(stride)
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        if values.is_empty() {
+            return None;
+        }
+        Some(q.map(|q| {
+            let k = ((values.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+            *values.select_nth_unstable_by(k, f32::total_cmp).1
+        }))
+    }
+
     /// The direction matrix row-major (9 numbers; columns are the voxel axes in LPS).
     pub fn direction_row_major(&self) -> [f64; 9] {
         let d = &self.direction;

@@ -13,14 +13,16 @@ use crate::image::{LoadedImage, Sampler};
 use crate::pipeline::Error;
 use crate::progress::Reporter;
 use crate::register::atlas_fit::DeformSettings;
-use crate::register::auto_landmarks::{Proposal, ProposeInput, propose_landmarks};
+use crate::register::auto_landmarks::{Proposal, ProposeInput, SideSource, propose_landmarks};
 
 /// Proposes the landmarks of `image` with the atlas at `atlas_dir` (the embedded one when
-/// `None`), as `config` registers.
+/// `None`), as `config` registers; `side` (`--side`) overrides the image's DICOM laterality,
+/// and without either the chain's handedness decides.
 pub fn propose(
     image: &LoadedImage,
     sampler: &Sampler,
     atlas_dir: Option<&Path>,
+    side: Option<Side>,
     config: &Config,
     progress: &dyn Reporter,
 ) -> Result<Proposal, Error> {
@@ -36,7 +38,15 @@ pub fn propose(
         sampler,
         right: &right,
         left: &left,
-        laterality: image.info.laterality.as_deref().and_then(Side::parse),
+        known_side: match side {
+            Some(side) => Some((side, SideSource::Given)),
+            None => image
+                .info
+                .laterality
+                .as_deref()
+                .and_then(Side::parse)
+                .map(|side| (side, SideSource::DicomLaterality)),
+        },
         search: &config.auto_landmarks,
         settings: DeformSettings {
             articulate: &config.articulate,

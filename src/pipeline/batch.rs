@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::case_process::{CaseProcess, run_here, run_in_child};
 pub use super::case_process::{CaseStatus, Outcome};
-use super::{Case, RunOptions, Stage};
+use super::{AutoLandmarks, Case, RunOptions, Stage};
 use crate::Error;
 use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
@@ -125,6 +125,8 @@ fn run_one(
         atlas: opts.atlas.clone(),
         side: None,
         keep_phi: opts.keep_phi,
+        // a case without a landmark file has them proposed from its image
+        auto_landmarks: AutoLandmarks::WhenMissing,
     };
     let status = match &opts.child {
         Some(process) => run_in_child(process, case, &run_opts, config, child_threads, progress),

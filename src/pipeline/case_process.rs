@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Case, RunOptions, Stage, run_case};
+use super::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::config::Config;
 use crate::progress::{Reporter, Silent, Task};
 
@@ -296,6 +296,7 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
                     atlas: job.atlas.clone().map(PathBuf::from),
                     side: None,
                     keep_phi: job.keep_phi,
+                    auto_landmarks: AutoLandmarks::WhenMissing,
                 };
                 pool.install(|| run_here(&case, &run_opts, &job.config, &reporter))
             }

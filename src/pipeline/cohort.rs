@@ -1,5 +1,6 @@
 //! A cohort: the cases of a batch, read from a folder of case folders or from a manifest
-//! (TOML or CSV: case id, image, landmarks, optional segmentation), and its deterministic
+//! (TOML or CSV: case id, image, optional landmarks, optional segmentation; a case without
+//! landmarks has them proposed from its image), and its deterministic
 //! slicing into shards for job arrays.
 //!
 //! Manifest paths are relative to the manifest's folder unless absolute.
@@ -53,7 +54,9 @@ pub enum CohortError {
 struct ManifestCase {
     id: String,
     image: PathBuf,
-    landmarks: PathBuf,
+    /// Empty or absent: the landmarks are proposed from the image.
+    #[serde(default)]
+    landmarks: Option<PathBuf>,
     #[serde(default)]
     segmentation: Option<PathBuf>,
 }
@@ -210,11 +213,15 @@ fn manifest_cases(manifest: &Path, rows: Vec<ManifestCase>) -> Result<Vec<Case>,
     rows.into_iter()
         .map(|row| {
             let image = resolve(&row.image);
-            let landmarks = resolve(&row.landmarks);
+            let landmarks = row
+                .landmarks
+                .as_deref()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map(resolve);
             let segmentation = row.segmentation.as_deref().map(resolve);
             let missing = [
                 ("image", Some(&image)),
-                ("landmarks", Some(&landmarks)),
+                ("landmarks", landmarks.as_ref()),
                 ("segmentation", segmentation.as_ref()),
             ]
             .into_iter()
@@ -231,7 +238,7 @@ fn manifest_cases(manifest: &Path, rows: Vec<ManifestCase>) -> Result<Vec<Case>,
                 root: image.parent().unwrap_or(base).to_path_buf(),
                 id: row.id,
                 image,
-                landmarks: Some(landmarks),
+                landmarks,
                 segmentation,
             })
         })

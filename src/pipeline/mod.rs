@@ -16,5 +16,5 @@ pub mod stage;
 
 pub use case::Case;
 pub use error::Error;
-pub use run::{RunOptions, RunSummary, run_case};
+pub use run::{AutoLandmarks, RunOptions, RunSummary, run_case};
 pub use stage::Stage;

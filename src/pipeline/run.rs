@@ -22,8 +22,8 @@ use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
-use crate::ear::{LandmarkFile, read_landmarks, write_json};
-use crate::ear::{Landmarks, Side};
+use crate::ear::{LandmarkFile, read_landmarks, write_json_with};
+use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::export::MechanicsSummary;
 use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
@@ -32,11 +32,13 @@ use crate::io_util::{write_atomic, write_json_file};
 use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
+use crate::pipeline::auto_landmarks::{proposal_record, propose};
 use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
 use crate::register::atlas_fit::{
     DeformRecord, DeformSettings, LevelSeconds, deform_atlas, fit_landmarks, place,
 };
+use crate::register::auto_landmarks::{Proposal, SideSource};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
     ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_landmarks_on_image,
@@ -62,6 +64,19 @@ pub struct RunOptions {
     pub side: Option<Side>,
     /// Carry the DICOM patient fields into the package's manifest (never otherwise).
     pub keep_phi: bool,
+    /// When the landmarks are proposed from the image instead of read.
+    pub auto_landmarks: AutoLandmarks,
+}
+
+/// When `run` proposes the landmarks from the image (`pipeline::auto_landmarks`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AutoLandmarks {
+    /// Never: a landmark file or the prompt.
+    Never,
+    /// Always (`run --auto-landmarks`); a case's own landmark file is not read.
+    Always,
+    /// When the case has no landmark file (`batch`).
+    WhenMissing,
 }
 
 /// What a finished run reports.
@@ -165,24 +180,64 @@ fn run_or_resume<T: Serialize + DeserializeOwned>(
     Ok(value)
 }
 
-/// The patient's landmarks: `--landmarks`, the case's file, or the prompt on a terminal.
-fn landmark_input(cx: Context, sampler: &Sampler) -> Result<LandmarkFile, Error> {
+/// The patient's landmarks: proposed from the image (see [`AutoLandmarks`]), `--landmarks`,
+/// the case's file, or the prompt on a terminal; with the proposal when there is one.
+fn landmark_input(
+    cx: Context,
+    ingested: &Ingested,
+    sampler: &Sampler,
+) -> Result<(LandmarkFile, Option<Proposal>), Error> {
     let (case, opts, progress) = (cx.case, cx.opts, cx.progress);
-    if let Some(path) = opts.landmarks.as_ref().or(case.landmarks.as_ref()) {
-        return Ok(read_landmarks(path)?);
+    let given = opts.landmarks.as_ref().or(case.landmarks.as_ref());
+    let auto = match opts.auto_landmarks {
+        AutoLandmarks::Always => true,
+        AutoLandmarks::WhenMissing => given.is_none(),
+        AutoLandmarks::Never => false,
+    };
+    if auto {
+        if let Some(path) = given {
+            progress.log(&format!(
+                "{}: landmarks proposed from the image; {} is not read",
+                case.id,
+                path.display()
+            ));
+        }
+        progress.log(&format!(
+            "{}: proposing the landmarks from the image",
+            case.id
+        ));
+        let proposal = propose(
+            &ingested.loaded,
+            sampler,
+            opts.atlas.as_deref(),
+            opts.side,
+            cx.config,
+            progress,
+        )?;
+        let file = LandmarkFile {
+            landmarks: proposal.landmarks,
+            side: Some(proposal.side),
+            notes: vec!["proposed from the image".into()],
+        };
+        return Ok((file, Some(proposal)));
+    }
+    if let Some(path) = given {
+        return Ok((read_landmarks(path)?, None));
     }
     if std::io::stdin().is_terminal() {
         progress.log("no landmark file: type the three landmarks");
         let landmarks = prompt_landmarks(PromptInput::Terminal, sampler)?;
-        return Ok(LandmarkFile {
+        let file = LandmarkFile {
             landmarks,
             side: None,
             notes: vec!["typed at the prompt".into()],
-        });
+        };
+        return Ok((file, None));
     }
     Err(Error::Usage(format!(
         "{}: no landmarks (landmarks.fcsv, .mrk.json, .json or .csv); give --landmarks FILE, \
-         pick them with `otoatlas landmarks {}`, or run on a terminal to be prompted",
+         pick them with `otoatlas landmarks {}`, give --auto-landmarks to have them proposed \
+         from the image, or run on a terminal to be prompted",
         case.root.display(),
         case.root.display()
     )))
@@ -238,6 +293,9 @@ struct Placed {
     atlas: Atlas,
     patient: Landmarks,
     warnings: Vec<LandmarkWarning>,
+    /// How the landmarks were proposed from the image, when they were
+    /// (`pipeline::auto_landmarks::proposal_record`).
+    proposal: Option<serde_json::Value>,
 }
 
 /// The deformable stage's outcome.
@@ -317,6 +375,7 @@ pub fn run_case(
         landmarks: LandmarkMetrics {
             patient: (&placed.patient).into(),
             registered: (&placed.atlas.landmark_positions(&deformed.nodes)).into(),
+            proposal: placed.proposal.clone(),
         },
         landmark_warnings: placed.warnings.iter().map(Into::into).collect(),
         rigid: (&fit).into(),
@@ -338,6 +397,14 @@ pub fn run_case(
         atlas: &placed.atlas,
         fit: &fit,
         landmark_warnings: &placed.warnings,
+        landmarks: &placed.patient,
+        proposed_confidence: placed.proposal.as_ref().map(|record| {
+            LandmarkName::ALL.map(|name| {
+                record["support"][name.key()]["confidence"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            })
+        }),
         rigid_nodes: &rigid_nodes,
         registered_nodes: &deformed.nodes,
         deform: &deformed.record,
@@ -449,12 +516,26 @@ fn landmarks(
     progress.case_stage(&case.id, Stage::Landmarks.name());
     let out = &opts.out;
     let t = Instant::now();
-    let file = if opts.from <= Stage::Landmarks {
-        landmark_input(cx, sampler)?
+    let (file, proposal) = if opts.from <= Stage::Landmarks {
+        landmark_input(cx, ingested, sampler)?
     } else {
-        read_landmarks(&artefact_path(out, Stage::Landmarks))?
+        (read_landmarks(&artefact_path(out, Stage::Landmarks))?, None)
     };
-    let (side, side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
+    let proposal_record = match (&proposal, opts.from <= Stage::Landmarks) {
+        (Some(p), _) => Some(proposal_record(p)),
+        (None, true) => None,
+        // resumed: the record the landmarks stage kept, if they were proposed
+        (None, false) => read_proposal_record(&artefact_path(out, Stage::Landmarks)),
+    };
+    let (side, mut side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
+    if let Some(p) = &proposal {
+        side_source = p.side_source.describe();
+    } else if let Some(source) = proposal_record
+        .as_ref()
+        .and_then(|r| serde_json::from_value::<SideSource>(r["side_source"].clone()).ok())
+    {
+        side_source = source.describe();
+    }
     let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
     let patient = file.landmarks;
     let image_check = ImageCheck {
@@ -484,9 +565,13 @@ fn landmarks(
         progress.log(&format!("{}: landmark warning: {warning}", case.id));
     }
     if opts.from <= Stage::Landmarks {
+        let mut extra = serde_json::Map::new();
+        if let Some(record) = &proposal_record {
+            extra.insert("proposal".into(), record.clone());
+        }
         write_atomic(
             &artefact_path(out, Stage::Landmarks),
-            write_json(&patient, Some(side)).as_bytes(),
+            write_json_with(&patient, Some(side), extra).as_bytes(),
         )?;
         clock.record(Stage::Landmarks.name(), t);
     }
@@ -502,7 +587,15 @@ fn landmarks(
         atlas,
         patient,
         warnings,
+        proposal: proposal_record,
     })
+}
+
+/// The proposal record a landmarks artefact keeps, if its landmarks were proposed.
+fn read_proposal_record(path: &Path) -> Option<serde_json::Value> {
+    let text = crate::io_util::read_text(path).ok()?;
+    let mut doc: serde_json::Value = serde_json::from_str(&text).ok()?;
+    Some(doc.get_mut("proposal")?.take())
 }
 
 /// The rigid (or similarity) fit of the atlas landmarks onto the patient's.

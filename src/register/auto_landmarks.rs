@@ -31,6 +31,8 @@ pub enum ProposeError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SideSource {
+    /// Given by the user (`--side`).
+    Given,
     /// The image's DICOM laterality.
     DicomLaterality,
     /// The chain's handedness in the image (the mirrored atlas fits worse).
@@ -61,6 +63,17 @@ pub struct Proposal {
     pub register_seconds: f64,
 }
 
+impl SideSource {
+    /// Where the side came from, as the report and `metrics.json` say it.
+    pub fn describe(self) -> &'static str {
+        match self {
+            SideSource::Given => "--side",
+            SideSource::DicomLaterality => "DICOM laterality",
+            SideSource::Handedness => "chain's handedness in the image",
+        }
+    }
+}
+
 impl Proposal {
     /// The support of `name`.
     pub fn support_of(&self, name: LandmarkName) -> LandmarkSupport {
@@ -79,8 +92,9 @@ pub struct ProposeInput<'a> {
     /// The atlas mirrored to each side.
     pub right: &'a Atlas,
     pub left: &'a Atlas,
-    /// The side the image's DICOM states, if any.
-    pub laterality: Option<Side>,
+    /// The side when it is known (`--side`, else the image's DICOM laterality) and where it
+    /// came from; `None`: from the chain's handedness in the image.
+    pub known_side: Option<(Side, SideSource)>,
     pub search: &'a SearchConfig,
     pub settings: DeformSettings<'a>,
     /// Probe step \[mm\] (the smallest voxel spacing).
@@ -103,9 +117,9 @@ pub fn propose_landmarks(
         },
     ];
     let search = search_chain(input.sampler.volume(), &sides, input.search, progress)?;
-    let (chosen, side_source) = match input.laterality {
-        Some(side) if side != search.best.side => (search.other, SideSource::DicomLaterality),
-        Some(_) => (search.best, SideSource::DicomLaterality),
+    let (chosen, side_source) = match input.known_side {
+        Some((side, source)) if side != search.best.side => (search.other, source),
+        Some((_, source)) => (search.best, source),
         None => (search.best, SideSource::Handedness),
     };
     let atlas = match chosen.side {

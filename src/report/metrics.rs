@@ -53,6 +53,11 @@ pub type Scores = BTreeMap<String, StructureMetrics>;
 pub struct LandmarkMetrics {
     pub patient: LandmarkPoints,
     pub registered: LandmarkPoints,
+    /// How the landmarks were proposed from the image (`run --auto-landmarks`, or a batch
+    /// case without a landmark file): the chain search's figures and each landmark's support;
+    /// absent for picked landmarks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub proposal: Option<serde_json::Value>,
 }
 
 /// Three landmarks as `[x, y, z]` (LPS mm) by name.

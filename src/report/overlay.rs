@@ -103,8 +103,27 @@ pub struct SliceSpec {
     pub window: (f32, f32),
 }
 
-/// Renders the slice with the contours of `contours` (2-pixel lines).
-pub fn render_slice(sampler: &Sampler, spec: &SliceSpec, contours: &[Contour]) -> RgbImage {
+/// A point drawn as a cross where it lies within [`MARKER_DEPTH_MM`] of the slice.
+#[derive(Debug, Clone, Copy)]
+pub struct Marker {
+    pub point: Point3<f64>,
+    pub color: [u8; 3],
+}
+
+/// How far from the slice's plane a marker is still drawn \[mm\].
+pub const MARKER_DEPTH_MM: f64 = 1.0;
+
+/// Half the span of a marker's cross \[pixels\].
+const MARKER_ARM_PIXELS: f64 = 6.0;
+
+/// Renders the slice with the contours of `contours` (2-pixel lines) and the `markers` near
+/// its plane (crosses).
+pub fn render_slice(
+    sampler: &Sampler,
+    spec: &SliceSpec,
+    contours: &[Contour],
+    markers: &[Marker],
+) -> RgbImage {
     let (u, v) = spec.view.axes();
     let n = ((2.0 * spec.half_width_mm / spec.pixel_mm).round() as usize).max(1);
     let corner = spec.centre - u * spec.half_width_mm - v * spec.half_width_mm;
@@ -147,6 +166,25 @@ pub fn render_slice(sampler: &Sampler, spec: &SliceSpec, contours: &[Contour]) -
                 draw_line(&mut image, to_pixel(&p), to_pixel(&q), contour.color);
             }
         }
+    }
+    for marker in markers {
+        if (marker.point - spec.centre).dot(&normal).abs() > MARKER_DEPTH_MM {
+            continue;
+        }
+        let (x, y) = to_pixel(&marker.point);
+        let arm = MARKER_ARM_PIXELS;
+        draw_line(
+            &mut image,
+            (x - arm, y - arm),
+            (x + arm, y + arm),
+            marker.color,
+        );
+        draw_line(
+            &mut image,
+            (x - arm, y + arm),
+            (x + arm, y - arm),
+            marker.color,
+        );
     }
     image
 }
@@ -216,6 +254,7 @@ mod tests {
                 mesh: &mesh,
                 color: red,
             }],
+            &[],
         );
         assert_eq!((img.width, img.height), (60, 60));
         // x > 0 (patient left) is bright and lies on the image right
@@ -227,6 +266,41 @@ mod tests {
         assert_eq!(img.pixels[30 * 60 + 25], [0; 3]);
         let png = img.to_png().unwrap();
         assert_eq!(&png[1..4], b"PNG");
+    }
+
+    /// A marker in the plane is a cross centred on its point; one beyond the depth is not
+    /// drawn.
+    #[test]
+    fn markers_near_the_plane_are_crosses_and_far_ones_are_not_drawn() {
+        let (v, _) = scene();
+        let sampler = Sampler::new(&v).unwrap();
+        let spec = SliceSpec {
+            view: View::Axial,
+            centre: Point3::origin(),
+            half_width_mm: 1.5,
+            pixel_mm: 0.05,
+            window: (0.0, 1000.0),
+        };
+        let cyan = [0, 200, 255];
+        // axial: u = x (image right), v = y; the marker at (-0.5, 0, 0.5) mm is at pixel
+        // (20, 30), within the depth; the one at z = 1.5 mm is not
+        let markers = [
+            Marker {
+                point: Point3::new(-0.5, 0.0, 0.5),
+                color: cyan,
+            },
+            Marker {
+                point: Point3::new(0.5, 0.5, 1.5),
+                color: [0, 255, 0],
+            },
+        ];
+        let img = render_slice(&sampler, &spec, &[], &markers);
+        let at = |x: usize, y: usize| img.pixels[y * 60 + x];
+        assert_eq!(at(20, 30), cyan);
+        assert_eq!(at(24, 34), cyan);
+        assert_eq!(at(16, 34), cyan);
+        assert_eq!(at(20, 34), [0; 3]);
+        assert!(img.pixels.iter().all(|p| *p != [0, 255, 0]));
     }
 
     #[test]
@@ -241,7 +315,7 @@ mod tests {
             pixel_mm: 0.1,
             window: (0.0, 1000.0),
         };
-        let img = render_slice(&sampler, &spec, &[]);
+        let img = render_slice(&sampler, &spec, &[], &[]);
         let at = |x: usize, y: usize| img.pixels[y * 60 + x];
         // inside: the dark half black, the bright half white (x = -0.45 and 1.55 mm)
         assert_eq!((at(5, 30), at(25, 30)), ([0; 3], [255; 3]));

@@ -11,7 +11,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::error::ReportError;
 use super::html::{Figure, FigureContent};
-use super::overlay::{Contour, SliceSpec, View, render_slice};
+use super::overlay::{Contour, Marker, SliceSpec, View, render_slice};
 use crate::atlas::Part;
 use crate::image::{Sampler, Volume};
 use crate::mesh::TriMesh;
@@ -22,6 +22,8 @@ pub const RIGID_COLOUR: [u8; 3] = [255, 160, 0];
 pub const REGISTERED_COLOUR: [u8; 3] = [255, 0, 255];
 /// Contour colour of the manual segmentation.
 pub const SEGMENTATION_COLOUR: [u8; 3] = [0, 230, 80];
+/// Colour of the landmarks' crosses.
+pub const LANDMARK_COLOUR: [u8; 3] = [0, 200, 255];
 /// Side of every overlay image \[pixels\].
 pub const OVERLAY_PIXELS: usize = 256;
 /// Space around the ossicle's bounding box [mm].
@@ -37,27 +39,16 @@ pub struct OverlaySurfaces<'a> {
     pub rigid: &'a BTreeMap<String, TriMesh>,
     pub registered: &'a BTreeMap<String, TriMesh>,
     pub segmentation: Option<&'a BTreeMap<String, TriMesh>>,
+    /// The patient's landmarks (picked or proposed), drawn as crosses near each slice.
+    pub landmarks: &'a [Point3<f64>],
 }
 
 /// The grey window [lo, hi] of the image: its 1st and 99.5th percentile voxel values.
 pub fn bone_window(volume: &Volume) -> (f32, f32) {
-    let stride = volume.data.len().div_ceil(WINDOW_SAMPLES).max(1);
-    let mut values: Vec<f32> = volume
-        .data
-        .iter()
-        .step_by(stride)
-        .copied()
-        .filter(|v| v.is_finite())
-        .collect();
-    if values.is_empty() {
+    let Some([lo, hi]) = volume.quantiles([WINDOW_QUANTILES.0, WINDOW_QUANTILES.1], WINDOW_SAMPLES)
+    else {
         return (0.0, 1.0);
-    }
-    let mut quantile = |q: f64| {
-        let k = ((values.len() - 1) as f64 * q).round() as usize;
-        *values.select_nth_unstable_by(k, f32::total_cmp).1
     };
-    let lo = quantile(WINDOW_QUANTILES.0);
-    let hi = quantile(WINDOW_QUANTILES.1);
     (lo, if hi > lo { hi } else { lo + 1.0 })
 }
 
@@ -109,6 +100,14 @@ pub fn overlay_figures(
             contours.push(Contour { mesh, color });
         }
     }
+    let markers: Vec<Marker> = surfaces
+        .landmarks
+        .iter()
+        .map(|&point| Marker {
+            point,
+            color: LANDMARK_COLOUR,
+        })
+        .collect();
     let mut out = Vec::new();
     for part in Part::BONES {
         let Some(mesh) = surfaces
@@ -136,7 +135,7 @@ pub fn overlay_figures(
                 2.0 * half_width_mm,
                 orientation(view)
             );
-            let png = render_slice(sampler, &spec, &contours)
+            let png = render_slice(sampler, &spec, &contours, &markers)
                 .to_png()
                 .map_err(|source| ReportError::Png {
                     figure: caption.clone(),

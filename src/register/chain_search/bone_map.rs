@@ -17,24 +17,10 @@ pub struct Levels {
 impl Levels {
     /// The levels of `volume`; `None` when it holds no finite value.
     pub fn of(volume: &Volume) -> Option<Levels> {
-        let stride = (volume.data.len() / LEVEL_SAMPLES).max(1);
-        let mut values: Vec<f32> = volume
-            .data
-            .iter()
-            .step_by(stride)
-            .copied()
-            .filter(|v| v.is_finite())
-            .collect();
-        if values.is_empty() {
-            return None;
-        }
-        let mut at = |q: f64| {
-            let k = ((values.len() - 1) as f64 * q).round() as usize;
-            *values.select_nth_unstable_by(k, f32::total_cmp).1 as f64
-        };
+        let [air, bone] = volume.quantiles([0.01, 0.995], LEVEL_SAMPLES)?;
         Some(Levels {
-            air: at(0.01),
-            bone: at(0.995),
+            air: air as f64,
+            bone: bone as f64,
         })
     }
 

@@ -25,10 +25,11 @@ use super::metrics::{DeformSummary, Scores};
 use super::overlay::OUTSIDE_IMAGE;
 use super::plot::{AxisSpec, Series, line_chart_svg};
 use super::slices::{
-    OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR, overlay_figures,
+    LANDMARK_COLOUR, OverlaySurfaces, REGISTERED_COLOUR, RIGID_COLOUR, SEGMENTATION_COLOUR,
+    overlay_figures,
 };
 use crate::atlas::{Atlas, Part};
-use crate::ear::Side;
+use crate::ear::{Landmarks, Side};
 use crate::image::{LoadedImage, Sampler};
 use crate::mechanics::Validation;
 use crate::mesh::TriMesh;
@@ -67,6 +68,10 @@ pub struct CaseReportInput<'a> {
     pub fit: &'a RigidFit,
     /// What the landmark checks found unusual but possible (shown with the landmarks).
     pub landmark_warnings: &'a [LandmarkWarning],
+    /// The patient's landmarks (drawn on the overlays).
+    pub landmarks: &'a Landmarks,
+    /// Each landmark's confidence when they were proposed from the image; `None` for picks.
+    pub proposed_confidence: Option<[f64; 3]>,
     /// Atlas nodes after the rigid fit and after the deformable registration.
     pub rigid_nodes: &'a [Point3<f64>],
     pub registered_nodes: &'a [Point3<f64>],
@@ -142,6 +147,13 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     let mut legend = vec![
         ("atlas after the rigid fit", RIGID_COLOUR),
         ("atlas after the deformable registration", REGISTERED_COLOUR),
+        (
+            match input.proposed_confidence {
+                Some(_) => "landmarks proposed from the image (within 1 mm of the slice)",
+                None => "landmarks picked (within 1 mm of the slice)",
+            },
+            LANDMARK_COLOUR,
+        ),
     ];
     if reference.is_some() {
         legend.push(("manual segmentation", SEGMENTATION_COLOUR));
@@ -164,6 +176,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
         rigid: &rigid,
         registered: &registered,
         segmentation: reference,
+        landmarks: &input.landmarks.points(),
     };
     for (_, figures) in overlay_figures(input.sampler, &overlay)? {
         page.figures(&figures);

@@ -243,10 +243,40 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
     let mut landmarks: Vec<Vec<String>> = LandmarkName::ALL
         .iter()
         .zip(&input.fit.residuals_mm)
-        .map(|(n, r)| vec![n.key().to_string(), mm(*r)])
+        .enumerate()
+        .map(|(k, (n, r))| {
+            let mut row = vec![n.key().to_string(), mm(*r)];
+            if let Some(confidence) = input.proposed_confidence {
+                row.push(format!("{:.2}", confidence[k]));
+            }
+            row
+        })
         .collect();
-    landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm)]);
-    page.table(&["landmark", "rigid-fit residual (mm)"], &landmarks);
+    match input.proposed_confidence {
+        None => {
+            landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm)]);
+            page.table(&["landmark", "rigid-fit residual (mm)"], &landmarks);
+        }
+        Some(_) => {
+            landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm), String::new()]);
+            page.paragraph(
+                "The landmarks were proposed from the image, not picked: the atlas chain was \
+                 searched for over every orientation and both sides, registered, and the \
+                 landmarks read off it. A landmark's confidence is the share of the bone \
+                 surface within 2 mm of it whose edge the image confirms within a voxel; check \
+                 the crosses on the overlays.",
+                Some("note"),
+            );
+            page.table(
+                &[
+                    "landmark",
+                    "rigid-fit residual (mm)",
+                    "confidence (proposed)",
+                ],
+                &landmarks,
+            );
+        }
+    }
     for warning in input.landmark_warnings {
         page.paragraph(&format!("landmark warning: {warning}"), Some("warn"));
     }

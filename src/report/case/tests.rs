@@ -151,6 +151,8 @@ fn html_warned(
         atlas: &f.atlas,
         fit: &f.fit,
         landmark_warnings,
+        landmarks: &f.atlas.landmark_positions(&f.rigid),
+        proposed_confidence: None,
         rigid_nodes: &f.rigid,
         registered_nodes: &f.registered,
         deform: &f.deform,
