@@ -10,6 +10,7 @@ use serde_json::Value;
 
 use crate::common::python::run_python;
 use crate::common::{otoatlas, otoatlas_json, root, shared_anatomy};
+use crate::registration_accuracy::{check, copy_case, score};
 use crate::registration_real_anatomy::{ct_chain, phantom};
 
 /// The largest distance of a proposed landmark from the truth \[mm\] (the target).
@@ -91,6 +92,51 @@ fn a_real_chains_landmarks_are_found_on_both_sides() {
             &format!("CT chain, seed {seed}, {spacing} mm, {side}"),
         );
     }
+}
+
+/// `run --auto-landmarks` on a case without a landmark file (a bare NIfTI image, so the side
+/// comes from the chain's handedness) meets the bounds the picked landmarks meet
+/// (`registration_accuracy::check`), and its metrics say the landmarks were proposed.
+#[test]
+#[ignore = "heavy: a chain search and two registrations; scripts/test.sh runs it"]
+fn run_with_proposed_landmarks_meets_the_picked_landmarks_bounds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = copy_case(
+        &root().join("sample_cases/case-003"),
+        &tmp.path().join("case-003"),
+        &["image.nii.gz", "truth.json"],
+    );
+    let from = root().join("sample_cases/case-003/segmentation");
+    std::fs::create_dir_all(case.join("segmentation")).unwrap();
+    for f in ["malleus.ply", "incus.ply", "stapes.ply", "eardrum.ply"] {
+        std::fs::copy(from.join(f), case.join("segmentation").join(f)).unwrap();
+    }
+    let out = tmp.path().join("out");
+    let scored = score(&case, &out, &["--auto-landmarks"]);
+    check(&scored);
+    assert_eq!(scored.side, "left");
+    let metrics: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap())
+            .unwrap();
+    assert_eq!(metrics["side_source"], "chain's handedness in the image");
+    let proposal = &metrics["landmarks"]["proposal"];
+    assert!(proposal["search"]["best"]["score"].as_f64().unwrap() > 0.45, "{proposal}");
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("confidence (proposed)"));
+    // resumed after the landmarks stage, the record is kept
+    let (code, resumed) = crate::common::otoatlas_json(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--from",
+        "rigid",
+        "--config",
+        out.parent().unwrap().join("pipeline.toml").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{resumed}");
+    assert_eq!(resumed["side_source"], "chain's handedness in the image");
+    assert_eq!(resumed["landmarks"]["proposal"], *proposal);
 }
 
 /// A sample case with its ossicles (and 0.4 mm around them) replaced by air, and a bone block

@@ -52,7 +52,7 @@ fn cohort_json(out: &Path) -> Value {
 }
 
 #[test]
-#[ignore = "heavy: a batch of the sample cases, 18 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: a batch of the sample cases, one with its landmarks proposed, 25 s in debug; scripts/test.sh runs it"]
 fn a_failing_case_is_recorded_and_the_others_finish() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = sample_cohort(dir.path());
@@ -61,6 +61,15 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
         let _ = std::fs::remove_file(cohort.join("case-002").join(name));
     }
     std::fs::write(cohort.join("case-002/landmarks.fcsv"), "not,a,markup\n").unwrap();
+    // case-001 has no landmark file at all: its landmarks are proposed from its image
+    for name in [
+        "landmarks.fcsv",
+        "landmarks.mrk.json",
+        "landmarks.json",
+        "landmarks.csv",
+    ] {
+        let _ = std::fs::remove_file(cohort.join("case-001").join(name));
+    }
     // what `run` accepts is a case: case-003's series in DICOM/ instead of dicom/; the rest is
     // listed with its reason, never dropped silently (the earlier batch dropped all four)
     std::fs::rename(cohort.join("case-003/dicom"), cohort.join("case-003/DICOM")).unwrap();
@@ -114,6 +123,15 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
         assert!(out.join("cases").join(id).join("metrics.json").is_file());
     }
     assert!(!out.join("cases/case-002/metrics.json").exists());
+    let proposed: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("cases/case-001/metrics.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        proposed["landmarks"]["proposal"]["support"]["umbo"]["confidence"].is_number(),
+        "case-001's landmarks were proposed: {}",
+        proposed["landmarks"]
+    );
     // the cohort report links the finished cases and names the failure
     let html = std::fs::read_to_string(out.join("cohort.html")).unwrap();
     assert!(html.contains("cases/case-001/report.html"), "{html}");

@@ -12,10 +12,10 @@ use serde_json::Value;
 const OSSICLES: [&str; 3] = ["malleus", "incus", "stapes"];
 
 /// One registered case: its voxel size and, per structure, (MASD rigid, MASD final, HD95).
-struct Scored {
+pub(crate) struct Scored {
     case: String,
     spacing: f64,
-    side: String,
+    pub(crate) side: String,
     structures: Vec<(String, f64, f64, f64)>,
     landmark_error_mm: f64,
 }
@@ -40,8 +40,9 @@ fn register(case: &Path, out: &Path, extra: &[&str]) -> (i32, Value) {
     otoatlas_json(&args)
 }
 
-fn score(case: &Path, out: &Path) -> Scored {
-    let (code, m) = register(case, out, &[]);
+/// `run` on a phantom (with `extra` arguments), scored against its truth.
+pub(crate) fn score(case: &Path, out: &Path, extra: &[&str]) -> Scored {
+    let (code, m) = register(case, out, extra);
     assert_eq!(code, 0, "{}: {m}", case.display());
     let t = truth(case);
     let spacing = t["image"]["spacing_mm"]
@@ -88,7 +89,7 @@ fn score(case: &Path, out: &Path) -> Scored {
 /// (MASD ≤ half a voxel, HD95 ≤ two voxels, and the deformable stage's improvement over rigid
 /// alone, ≥ 40 %; 55-90 % measured since the surface level), and the improvement on the chain
 /// (mean MASD of the three ossicles, ≥ 50 %; 63 % at least measured).
-fn check(s: &Scored) {
+pub(crate) fn check(s: &Scored) {
     for (name, rigid, fin, hd95) in &s.structures {
         eprintln!(
             "{:<10} {:>6.3} mm {:<5} {:<8} MASD rigid {:.3} -> {:.3} mm, HD95 {:.3} mm",
@@ -145,7 +146,7 @@ fn the_sample_cases_register_within_the_accuracy_bounds() {
     let dir = tempfile::tempdir().unwrap();
     for k in 1..=3 {
         let case = root().join(format!("sample_cases/case-00{k}"));
-        let s = score(&case, &dir.path().join(format!("out{k}")));
+        let s = score(&case, &dir.path().join(format!("out{k}")), &[]);
         check(&s);
     }
 }
@@ -174,7 +175,7 @@ fn ten_more_phantoms_register_within_the_accuracy_bounds() {
     let mut sides = Vec::new();
     for k in 1..=10 {
         let case = cases.join(format!("case-{k:03}"));
-        let s = score(&case, &dir.path().join(format!("out{k}")));
+        let s = score(&case, &dir.path().join(format!("out{k}")), &[]);
         check(&s);
         spacings.push(s.spacing);
         sides.push(s.side);
@@ -239,7 +240,7 @@ fn the_wrong_side_puts_the_atlas_in_inside_out() {
     }
 }
 
-fn copy_case(case: &Path, to: &Path, files: &[&str]) -> PathBuf {
+pub(crate) fn copy_case(case: &Path, to: &Path, files: &[&str]) -> PathBuf {
     std::fs::create_dir_all(to).unwrap();
     for f in files {
         std::fs::copy(case.join(f), to.join(f)).unwrap();
