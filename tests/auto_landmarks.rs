@@ -116,11 +116,13 @@ fn run_with_proposed_landmarks_meets_the_picked_landmarks_bounds() {
     check(&scored);
     assert_eq!(scored.side, "left");
     let metrics: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(metrics["side_source"], "chain's handedness in the image");
     let proposal = &metrics["landmarks"]["proposal"];
-    assert!(proposal["search"]["best"]["score"].as_f64().unwrap() > 0.45, "{proposal}");
+    assert!(
+        proposal["search"]["best"]["score"].as_f64().unwrap() > 0.45,
+        "{proposal}"
+    );
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("confidence (proposed)"));
     // resumed after the landmarks stage, the record is kept
@@ -132,7 +134,11 @@ fn run_with_proposed_landmarks_meets_the_picked_landmarks_bounds() {
         "--from",
         "rigid",
         "--config",
-        out.parent().unwrap().join("pipeline.toml").to_str().unwrap(),
+        out.parent()
+            .unwrap()
+            .join("pipeline.toml")
+            .to_str()
+            .unwrap(),
     ]);
     assert_eq!(code, 0, "{resumed}");
     assert_eq!(resumed["side_source"], "chain's handedness in the image");

@@ -29,6 +29,11 @@ impl Volume {
         i + self.dims[0] * (j + self.dims[1] * k)
     }
 
+    /// The smallest voxel spacing \[mm\] (the step the registration probes with).
+    pub fn smallest_spacing(&self) -> f64 {
+        self.spacing.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
     /// Total number of voxels.
     pub fn len(&self) -> usize {
         self.dims.iter().product()

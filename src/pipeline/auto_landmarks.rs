@@ -28,12 +28,7 @@ pub fn propose(
 ) -> Result<Proposal, Error> {
     let right = crate::atlas::load_atlas(atlas_dir, Some(Side::Right))?;
     let left = crate::atlas::load_atlas(atlas_dir, Some(Side::Left))?;
-    let step = image
-        .volume
-        .spacing
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let step = image.volume.smallest_spacing();
     let input = ProposeInput {
         sampler,
         right: &right,

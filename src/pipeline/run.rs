@@ -485,12 +485,7 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
             )));
         }
     }
-    let step = loaded
-        .volume
-        .spacing
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let step = loaded.volume.smallest_spacing();
     clock.record(Stage::Ingest.name(), t);
     Ok(Ingested {
         loaded,

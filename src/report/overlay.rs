@@ -235,17 +235,22 @@ mod tests {
         (v, mesh)
     }
 
-    #[test]
-    fn axial_slice_shows_the_bright_side_on_the_image_right_and_the_contour() {
-        let (v, mesh) = scene();
-        let sampler = Sampler::new(&v).unwrap();
-        let spec = SliceSpec {
+    /// An axial slice through the origin, 3 mm across in 60 pixels.
+    fn axial_through_the_origin() -> SliceSpec {
+        SliceSpec {
             view: View::Axial,
             centre: Point3::origin(),
             half_width_mm: 1.5,
             pixel_mm: 0.05,
             window: (0.0, 1000.0),
-        };
+        }
+    }
+
+    #[test]
+    fn axial_slice_shows_the_bright_side_on_the_image_right_and_the_contour() {
+        let (v, mesh) = scene();
+        let sampler = Sampler::new(&v).unwrap();
+        let spec = axial_through_the_origin();
         let red = [255, 0, 0];
         let img = render_slice(
             &sampler,
@@ -274,13 +279,7 @@ mod tests {
     fn markers_near_the_plane_are_crosses_and_far_ones_are_not_drawn() {
         let (v, _) = scene();
         let sampler = Sampler::new(&v).unwrap();
-        let spec = SliceSpec {
-            view: View::Axial,
-            centre: Point3::origin(),
-            half_width_mm: 1.5,
-            pixel_mm: 0.05,
-            window: (0.0, 1000.0),
-        };
+        let spec = axial_through_the_origin();
         let cyan = [0, 200, 255];
         // axial: u = x (image right), v = y; the marker at (-0.5, 0, 0.5) mm is at pixel
         // (20, 30), within the depth; the one at z = 1.5 mm is not

@@ -94,10 +94,11 @@ mod tests {
 
     #[test]
     fn air_is_zero_bone_is_one_and_soft_tissue_is_zero() {
-        // half air, a little soft tissue, the rest bone
+        // half air, a little soft tissue, ossicle bone, and 1 % otic capsule (the densest)
         let mut data = vec![-1000.0f32; 500];
         data.extend(vec![40.0f32; 100]);
-        data.extend(vec![1500.0f32; 400]);
+        data.extend(vec![1500.0f32; 390]);
+        data.extend(vec![2000.0f32; 10]);
         let volume = Volume {
             dims: [10, 10, 10],
             spacing: [0.2; 3],
@@ -106,11 +107,41 @@ mod tests {
             data,
         };
         let levels = Levels::of(&volume).unwrap();
-        assert_eq!((levels.air, levels.bone), (-1000.0, 1500.0));
+        assert_eq!((levels.air, levels.bone), (-1000.0, 2000.0));
         assert_eq!(levels.boneness(-1000.0), 0.0);
         assert_eq!(levels.boneness(40.0), 0.0);
         assert_eq!(levels.boneness(1500.0), 1.0);
         // the middle of the ramp: 47.5 % of the way
-        assert!((levels.boneness(187.5) - 0.5).abs() < 1e-6);
+        assert!((levels.boneness(425.0) - 0.5).abs() < 1e-6);
+    }
+
+    /// A thick block goes and a rod one voxel thin stays: the walls and the ossicles.
+    #[test]
+    fn the_top_hat_keeps_thin_bone_and_removes_thick_bone() {
+        let n = 20;
+        let mut data = vec![0f32; n * n * n];
+        let index = |i: usize, j: usize, k: usize| i + n * (j + n * k);
+        for k in 0..n {
+            for j in 0..n {
+                // a block 8 voxels thick, x < 8
+                for i in 0..8 {
+                    data[index(i, j, k)] = 1.0;
+                }
+            }
+            // a rod along z at (14, 10)
+            data[index(14, 10, k)] = 1.0;
+        }
+        let mut v = Volume {
+            dims: [n; 3],
+            spacing: [0.5; 3],
+            origin: Vector3::zeros(),
+            direction: Matrix3::identity(),
+            data,
+        };
+        top_hat(&mut v, 2);
+        assert_eq!(v.data[index(14, 10, 5)], 1.0);
+        assert_eq!(v.data[index(3, 10, 5)], 0.0);
+        assert_eq!(v.data[index(7, 10, 5)], 0.0);
+        assert!(v.data.iter().filter(|&&x| x > 0.0).count() == n);
     }
 }

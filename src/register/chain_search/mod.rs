@@ -325,7 +325,7 @@ fn chain_centre(atlas: &Atlas) -> Point3<f64> {
 fn level(bone: &Volume, spacing: f64, thick_mm: Option<f64>, sigma: f64) -> Volume {
     let mut v = downsample(bone, spacing);
     if let Some(thick) = thick_mm {
-        let voxel = v.spacing.iter().copied().fold(f64::INFINITY, f64::min);
+        let voxel = v.smallest_spacing();
         bone_map::top_hat(&mut v, (thick / voxel / 2.0).round() as usize);
     }
     gaussian_blur(&mut v, sigma);
@@ -356,7 +356,7 @@ pub fn search_chain(
     progress: &dyn Reporter,
 ) -> Result<ChainSearch, SearchError> {
     let clock = Instant::now();
-    let voxel = volume.spacing.iter().copied().fold(f64::INFINITY, f64::min);
+    let voxel = volume.smallest_spacing();
     if voxel > cfg.max_voxel_mm || !voxel.is_finite() {
         return Err(SearchError::TooCoarse {
             voxel_mm: voxel,
