@@ -176,3 +176,110 @@ fn an_image_without_ossicles_fails_saying_what_was_searched() {
     );
     assert!(!tmp.path().join("p.fcsv").exists());
 }
+
+/// On a pipe with `--suggest`, an empty answer accepts the proposed landmark and a typed one
+/// replaces it.
+#[test]
+fn the_prompt_offers_the_proposal_and_enter_accepts_it() {
+    use std::io::Write;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = root().join("sample_cases/case-002");
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    // Enter, Enter, then the true ISJ typed in mm
+    let isj = point(&truth["landmarks"]["incudostapedial"]);
+    let answers = format!("\n\n{} {} {}\n", isj[0], isj[1], isj[2]);
+    let out = tmp.path().join("picks.fcsv");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(["landmarks", "--suggest", "--out"])
+        .arg(&out)
+        .arg(dir.join("image.nii.gz"))
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(answers.as_bytes())
+        .unwrap();
+    let done = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(done.status.success(), "{stderr}");
+    assert!(stderr.contains("Enter accepts the proposal"), "{stderr}");
+    let written: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.with_extension("json")).unwrap())
+            .unwrap();
+    for key in ["umbo", "incudomalleolar"] {
+        let (p, t) = (point(&written[key]), point(&truth["landmarks"][key]));
+        let d = (0..3).map(|k| (p[k] - t[k]).powi(2)).sum::<f64>().sqrt();
+        assert!(
+            d <= MAX_ERROR_MM,
+            "{key}: the accepted proposal is {d:.3} mm from the truth"
+        );
+    }
+    let typed = point(&written["incudostapedial"]);
+    assert!(
+        (0..3).all(|k| (typed[k] - isj[k]).abs() < 1e-3),
+        "{typed:?}"
+    );
+    // the side of a NIfTI without laterality: the chain's handedness
+    assert_eq!(written["side"], truth["side"]);
+}
+
+/// A pick 1.5 mm off the umbo (out of the landmark triangle's plane, so that every distance
+/// stays in its band) is what the registration does not follow: `run` warns, naming the
+/// landmark and the distance, and keeps the case.
+#[test]
+#[ignore = "heavy: a registration of case-002, 5 s in debug; scripts/test.sh runs it"]
+fn a_pick_the_registration_does_not_follow_is_warned_about() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = copy_case(
+        &root().join("sample_cases/case-002"),
+        &tmp.path().join("case-002"),
+        &["image.nii.gz", "landmarks.json"],
+    );
+    let mut picks: Value =
+        serde_json::from_str(&std::fs::read_to_string(case.join("landmarks.json")).unwrap())
+            .unwrap();
+    let [u, m, s] = ["umbo", "incudomalleolar", "incudostapedial"].map(|k| point(&picks[k]));
+    let (a, b) = (
+        [0, 1, 2].map(|k| m[k] - u[k]),
+        [0, 1, 2].map(|k| s[k] - u[k]),
+    );
+    let n = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let len = n.iter().map(|v| v * v).sum::<f64>().sqrt();
+    picks["umbo"] = serde_json::json!([0, 1, 2].map(|k| u[k] + 1.5 * n[k] / len));
+    std::fs::write(case.join("landmarks.json"), picks.to_string()).unwrap();
+    let out = tmp.path().join("out");
+    let (code, _) = crate::common::otoatlas_json(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        crate::common::config_without_validation(tmp.path())
+            .to_str()
+            .unwrap(),
+    ]);
+    assert_eq!(code, 0);
+    let metrics: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let warnings = metrics["landmark_warnings"].as_array().unwrap();
+    let far: Vec<&Value> = warnings
+        .iter()
+        .filter(|w| w["kind"] == "far_from_registration")
+        .collect();
+    assert_eq!(far.len(), 1, "{warnings:?}");
+    assert_eq!(far[0]["landmark"], "umbo");
+    let d = far[0]["distance_mm"].as_f64().unwrap();
+    assert!(d > 1.0 && d < 2.0, "{d}");
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("from its pick"));
+}

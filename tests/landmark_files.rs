@@ -249,6 +249,7 @@ fn prompt_from_a_pipe_reasks_on_bad_input_and_accepts_voxels() {
             echo: &mut echo,
         },
         &sampler,
+        None,
     )
     .unwrap();
     assert_points(&l, &expected());
@@ -266,6 +267,7 @@ fn prompt_from_a_pipe_reasks_on_bad_input_and_accepts_voxels() {
             echo: &mut sink,
         },
         &sampler,
+        None,
     )
     .unwrap_err();
     assert!(matches!(err, LandmarkError::PromptEnded));
@@ -362,6 +364,7 @@ fn endless_inputs_are_refused_and_a_byte_order_mark_is_ignored() {
             echo: &mut sink,
         },
         &sampler,
+        None,
     )
     .unwrap_err();
     assert!(matches!(err, LandmarkError::PromptEnded));

@@ -25,7 +25,9 @@ use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks}
 #[command(
     after_help = "Answers are 'x y z' in LPS mm or 'v i j k' in voxel indices; each is
 echoed with the intensity there, and asked again if it is not understood or outside the image.
-On a pipe, one answer per line.
+On a terminal each question offers the landmark proposed from the image (as --auto finds it):
+Enter accepts it. On a pipe, one answer per line; with --suggest an empty line accepts the
+proposal.
 
 Examples:
   otoatlas landmarks sample_cases/case-001
@@ -48,8 +50,13 @@ pub struct LandmarksArgs {
     /// Propose the landmarks from the image instead of asking for them.
     #[arg(long)]
     pub auto: bool,
-    /// The atlas to search for and register (default: the embedded atlas); with --auto.
-    #[arg(long, value_name = "DIR", requires = "auto")]
+    /// Offer the landmarks proposed from the image as each answer's default (Enter accepts);
+    /// always on a terminal, with this flag on a pipe too.
+    #[arg(long, conflicts_with = "auto")]
+    pub suggest: bool,
+    /// The atlas to search for and register (default: the embedded atlas); with --auto or
+    /// --suggest.
+    #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
@@ -101,8 +108,34 @@ pub fn run(
             progress,
         );
     }
-    let input = if std::io::stdin().is_terminal() {
-        prompt_landmarks(PromptInput::Terminal, &sampler)?
+    let terminal = std::io::stdin().is_terminal();
+    // the proposal as each answer's default; a case where none is found is still asked for
+    let proposal = match args.suggest || terminal {
+        true => {
+            progress.log(&format!(
+                "{}: proposing the landmarks from the image",
+                case.id
+            ));
+            match propose(
+                &loaded,
+                &sampler,
+                args.atlas.as_deref(),
+                None,
+                &config,
+                progress,
+            ) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    progress.log(&format!("no proposal to offer: {e}"));
+                    None
+                }
+            }
+        }
+        false => None,
+    };
+    let defaults = proposal.as_ref().map(|p| &p.landmarks);
+    let input = if terminal {
+        prompt_landmarks(PromptInput::Terminal, &sampler, defaults)?
     } else {
         let stdin = std::io::stdin();
         let mut lock = stdin.lock();
@@ -113,9 +146,16 @@ pub fn run(
                 echo: &mut stderr,
             },
             &sampler,
+            defaults,
         )?
     };
-    let side = loaded.info.laterality.as_deref().and_then(Side::parse);
+    // the image's laterality, else the chain's handedness when a proposal was made
+    let side = loaded
+        .info
+        .laterality
+        .as_deref()
+        .and_then(Side::parse)
+        .or(proposal.as_ref().map(|p| p.side));
     // the distances against the embedded atlas's (a mirror does not change them); a suspected
     // swap is only warned about here: `run` asks the image
     let atlas = crate::atlas::load_atlas(None, side)?;

@@ -41,8 +41,8 @@ use crate::register::atlas_fit::{
 use crate::register::auto_landmarks::{Proposal, SideSource};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{
-    ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_landmarks_on_image,
-    prompt_landmarks,
+    ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_against_registration,
+    check_landmarks_on_image, prompt_landmarks,
 };
 use crate::register::rigid::{RigidFit, RigidRecord};
 use crate::report::metrics::{
@@ -225,8 +225,20 @@ fn landmark_input(
         return Ok((read_landmarks(path)?, None));
     }
     if std::io::stdin().is_terminal() {
-        progress.log("no landmark file: type the three landmarks");
-        let landmarks = prompt_landmarks(PromptInput::Terminal, sampler)?;
+        progress.log("no landmark file: type the three landmarks (Enter accepts a proposal)");
+        let proposal = propose(
+            &ingested.loaded,
+            sampler,
+            opts.atlas.as_deref(),
+            opts.side,
+            cx.config,
+            progress,
+        );
+        if let Err(e) = &proposal {
+            progress.log(&format!("no proposal to offer: {e}"));
+        }
+        let defaults = proposal.as_ref().ok().map(|p| &p.landmarks);
+        let landmarks = prompt_landmarks(PromptInput::Terminal, sampler, defaults)?;
         let file = LandmarkFile {
             landmarks,
             side: None,
@@ -345,7 +357,7 @@ pub fn run_case(
             case.image.display()
         ))
     })?;
-    let placed = landmarks(cx, &ingested, &sampler, &mut clock)?;
+    let mut placed = landmarks(cx, &ingested, &sampler, &mut clock)?;
     let fit = rigid(cx, &placed, &mut clock)?;
     let rigid_nodes = place(&placed.atlas, &fit);
     let deformed = deform(
@@ -356,6 +368,15 @@ pub fn run_case(
         ingested.step,
         &mut clock,
     )?;
+    let registered_landmarks = placed.atlas.landmark_positions(&deformed.nodes);
+    if placed.proposal.is_none() {
+        // the image's word on the picks: where the registered atlas put each landmark
+        let far = check_against_registration(&placed.patient, &registered_landmarks);
+        for warning in &far {
+            progress.log(&format!("{}: landmark warning: {warning}", case.id));
+        }
+        placed.warnings.extend(far);
+    }
     let scored = score_case(
         cx,
         &placed.atlas,
@@ -374,7 +395,7 @@ pub fn run_case(
         image: ingested.record.clone(),
         landmarks: LandmarkMetrics {
             patient: (&placed.patient).into(),
-            registered: (&placed.atlas.landmark_positions(&deformed.nodes)).into(),
+            registered: (&registered_landmarks).into(),
             proposal: placed.proposal.clone(),
         },
         landmark_warnings: placed.warnings.iter().map(Into::into).collect(),

@@ -8,7 +8,10 @@ mod prompt;
 
 use std::path::PathBuf;
 
-pub use checks::{Band, CheckConfig, LandmarkWarning, check_landmarks, check_landmarks_on_image};
+pub use checks::{
+    Band, CheckConfig, LandmarkWarning, REGISTRATION_AGREEMENT_MM, check_against_registration,
+    check_landmarks, check_landmarks_on_image,
+};
 pub use image_check::{BorderFit, ImageCheck, SwapEvidence};
 
 pub use prompt::{PromptInput, prompt_landmarks};

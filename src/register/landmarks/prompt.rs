@@ -1,7 +1,8 @@
 //! Typing the landmarks at a prompt, in LPS mm (`x y z`) or in voxel indices (`v i j k`).
 //! Each answer is echoed with its position in both systems and the intensity there; a bad or
-//! out-of-image answer is explained and asked again. Works on a terminal (dialoguer) and line
-//! by line from a pipe, for scripts and tests.
+//! out-of-image answer is explained and asked again. With landmarks proposed from the image,
+//! each question offers its proposal: an empty answer (Enter) accepts it. Works on a terminal
+//! (dialoguer) and line by line from a pipe, for scripts and tests.
 
 use std::io::{BufRead, Read, Write};
 
@@ -84,19 +85,34 @@ fn describe(name: LandmarkName, p: &Point3<f64>, sampler: &Sampler) -> String {
     )
 }
 
-/// Asks for the three landmarks in turn.
+/// Asks for the three landmarks in turn; `proposed`, when given, is each answer's default.
 pub fn prompt_landmarks(
     mut input: PromptInput,
     sampler: &Sampler,
+    proposed: Option<&Landmarks>,
 ) -> Result<Landmarks, LandmarkError> {
     let mut points = Vec::with_capacity(3);
     for name in LandmarkName::ALL {
-        let question = format!("{} ('x y z' in LPS mm, or 'v i j k' in voxels)", name.key());
+        let default = proposed.map(|l| {
+            let p = l.get(name);
+            format!("{:.3} {:.3} {:.3}", p.x, p.y, p.z)
+        });
+        let question = match &default {
+            None => format!("{} ('x y z' in LPS mm, or 'v i j k' in voxels)", name.key()),
+            Some(d) => format!(
+                "{} ('x y z' in LPS mm, or 'v i j k' in voxels; Enter accepts the proposal {d})",
+                name.key()
+            ),
+        };
         let p = match &mut input {
             PromptInput::Terminal => {
-                let answer: String = dialoguer::Input::new()
+                let mut prompt = dialoguer::Input::new()
                     .with_prompt(&question)
-                    .validate_with(|s: &String| parse_answer(s, sampler).map(|_| ()))
+                    .validate_with(|s: &String| parse_answer(s, sampler).map(|_| ()));
+                if let Some(d) = &default {
+                    prompt = prompt.default(d.clone()).show_default(false);
+                }
+                let answer: String = prompt
                     .interact_text()
                     .map_err(|_| LandmarkError::PromptEnded)?;
                 let p = parse_answer(&answer, sampler).map_err(|_| LandmarkError::PromptEnded)?;
@@ -117,8 +133,13 @@ pub fn prompt_landmarks(
                     return Err(LandmarkError::PromptEnded);
                 }
                 if line.trim().is_empty() {
-                    let _ = writeln!(echo, "(empty answer)");
-                    continue;
+                    match &default {
+                        Some(d) => line = d.clone(),
+                        None => {
+                            let _ = writeln!(echo, "(empty answer)");
+                            continue;
+                        }
+                    }
                 }
                 match parse_answer(&line, sampler) {
                     Ok(p) => {

@@ -38,8 +38,22 @@ fn kinds(w: &[LandmarkWarning]) -> Vec<String> {
             LandmarkWarning::FlatTriangle { .. } => "flat".into(),
             LandmarkWarning::SuspectedSwap { a, b, .. } => format!("swap {a} {b}"),
             LandmarkWarning::SideOverridden { .. } => "side".into(),
+            LandmarkWarning::FarFromRegistration { landmark, .. } => format!("far {landmark}"),
         })
         .collect()
+}
+
+/// Only the picks farther than the limit from the registered atlas's landmarks are named.
+#[test]
+fn picks_far_from_the_registration_are_named_with_their_distance() {
+    let picks = atlas();
+    let mut registered = picks;
+    registered.umbo.x += 1.2;
+    registered.incudostapedial.y += 0.9;
+    let warnings = check_against_registration(&picks, &registered);
+    assert_eq!(kinds(&warnings), ["far umbo"]);
+    assert!(warnings[0].to_string().contains("1.20 mm from its pick"));
+    assert!(check_against_registration(&picks, &picks).is_empty());
 }
 
 #[test]
