@@ -275,8 +275,6 @@ fn prompt_from_a_pipe_reasks_on_bad_input_and_accepts_voxels() {
 
 #[test]
 fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
-    use std::io::Write;
-    use std::process::{Command, Stdio};
     let dir = tempfile::tempdir().unwrap();
     let volume = Volume {
         dims: [16, 16, 16],
@@ -307,20 +305,10 @@ fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
         &rescale,
     )
     .unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_otoatlas"))
-        .args(["landmarks", dir.path().to_str().unwrap(), "--quiet"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(b"12.5 -30.25 101\nv 8 10 13\n10.75 -26.5 103.25\n")
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = crate::common::otoatlas_with_stdin(
+        &["landmarks", dir.path().to_str().unwrap(), "--quiet"],
+        b"12.5 -30.25 101\nv 8 10 13\n10.75 -26.5 103.25\n",
+    );
     assert!(
         out.status.success(),
         "{}",

@@ -74,7 +74,7 @@ pub(crate) fn phantom(out: &Path, seed: &str, spacing: &str, side: &str, chain: 
 }
 
 /// The SOFA chain as per-ossicle surfaces with its landmarks.
-fn sofa_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
+pub(crate) fn sofa_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
     let atlas = tmp.join("sofa-atlas");
     let mut args = common::sofa_import_args(anatomy, &atlas);
     args.push("--quiet".into());

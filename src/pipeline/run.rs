@@ -194,6 +194,16 @@ fn landmark_input(
         AutoLandmarks::WhenMissing => given.is_none(),
         AutoLandmarks::Never => false,
     };
+    let propose_here = || {
+        propose(
+            &ingested.loaded,
+            sampler,
+            opts.atlas.as_deref(),
+            opts.side,
+            cx.config,
+            progress,
+        )
+    };
     if auto {
         if let Some(path) = given {
             progress.log(&format!(
@@ -206,14 +216,7 @@ fn landmark_input(
             "{}: proposing the landmarks from the image",
             case.id
         ));
-        let proposal = propose(
-            &ingested.loaded,
-            sampler,
-            opts.atlas.as_deref(),
-            opts.side,
-            cx.config,
-            progress,
-        )?;
+        let proposal = propose_here()?;
         let file = LandmarkFile {
             landmarks: proposal.landmarks,
             side: Some(proposal.side),
@@ -226,14 +229,7 @@ fn landmark_input(
     }
     if std::io::stdin().is_terminal() {
         progress.log("no landmark file: type the three landmarks (Enter accepts a proposal)");
-        let proposal = propose(
-            &ingested.loaded,
-            sampler,
-            opts.atlas.as_deref(),
-            opts.side,
-            cx.config,
-            progress,
-        );
+        let proposal = propose_here();
         if let Err(e) = &proposal {
             progress.log(&format!("no proposal to offer: {e}"));
         }

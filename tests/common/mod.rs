@@ -13,7 +13,7 @@ pub use external::{chromium, program, shared_anatomy, testdata};
 pub use meshes::*;
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 /// The crate root.
 pub fn root() -> PathBuf {
@@ -58,6 +58,25 @@ pub fn config_without_validation(dir: &std::path::Path) -> PathBuf {
     let path = dir.join("pipeline.toml");
     std::fs::write(&path, off).expect("write the test configuration");
     path
+}
+
+/// Runs the otoatlas binary with `args`, writing `stdin` to its standard input.
+pub fn otoatlas_with_stdin<S: AsRef<std::ffi::OsStr>>(args: &[S], stdin: &[u8]) -> Output {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("otoatlas starts");
+    child
+        .stdin
+        .take()
+        .expect("a stdin pipe")
+        .write_all(stdin)
+        .expect("write the answers");
+    child.wait_with_output().expect("otoatlas runs")
 }
 
 /// Runs the otoatlas binary with `args`.
