@@ -327,3 +327,43 @@ fn a_pick_the_registration_does_not_follow_is_warned_about() {
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("from its pick"));
 }
+
+/// `--side` against the chain's handedness (case-002 is a right ear): the stated side is
+/// kept, and the warning says the image's chain is the other ear's, with the margin.
+#[test]
+#[ignore = "heavy: a chain search and a registration of case-002; scripts/test.sh runs it"]
+fn a_stated_side_the_chain_contradicts_is_warned_about() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = copy_case(
+        &root().join("sample_cases/case-002"),
+        &tmp.path().join("case-002"),
+        &["image.nii.gz"],
+    );
+    let out = tmp.path().join("out");
+    let (code, v) = crate::common::otoatlas_json(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--auto-landmarks",
+        "--side",
+        "left",
+        "--config",
+        crate::common::config_without_validation(tmp.path())
+            .to_str()
+            .unwrap(),
+    ]);
+    assert_eq!(code, 0, "{v}");
+    assert_eq!(v["side"], "left");
+    assert_eq!(v["side_source"], "--side");
+    let warnings = v["landmark_warnings"].as_array().unwrap();
+    let w = warnings
+        .iter()
+        .find(|w| w["kind"] == "handedness_disagrees")
+        .unwrap_or_else(|| panic!("{warnings:?}"));
+    assert!(w["margin"].as_f64().unwrap() > 0.05, "{w}");
+    assert!(
+        w["message"].as_str().unwrap().contains("the other ear's"),
+        "{w}"
+    );
+}

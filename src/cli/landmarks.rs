@@ -213,6 +213,10 @@ fn propose_and_write(
         config,
         progress,
     )?;
+    let warning = proposal.side_warning();
+    if let Some(w) = &warning {
+        progress.log(&format!("landmark warning: {w}"));
+    }
     let (fcsv_text, mrk_text, json_text) = proposal_files(&proposal);
     let mrk = mrk_path(fcsv);
     write_atomic(fcsv, fcsv_text.as_bytes())?;
@@ -252,6 +256,7 @@ fn propose_and_write(
             "incudostapedial": proposal.landmarks.incudostapedial.coords.as_slice(),
         },
         "proposal": proposal_record(&proposal),
+        "warnings": warning.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
     });
     Ok(Report { text, json })
 }

@@ -573,6 +573,7 @@ fn landmarks(
             }
         })?;
     warnings.extend(side_warning);
+    warnings.extend(proposal.as_ref().and_then(Proposal::side_warning));
     for warning in &warnings {
         progress.log(&format!("{}: landmark warning: {warning}", case.id));
     }

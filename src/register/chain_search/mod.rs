@@ -187,6 +187,10 @@ const THICK_MM: f64 = 2.5;
 /// -1000, the ossicles about 1000-1500\].
 const MIN_CONTRAST: f64 = 200.0;
 
+/// The least share of the image darker than half-way from air to bone: the tympanic cavity
+/// and the ear canal (in the phantoms a third of the field of view or more) \[%\].
+const MIN_AIR_PERCENT: f64 = 3.0;
+
 /// Coarse-refined candidates refined again on the sharp map, per side.
 const FINE_CANDIDATES: usize = 8;
 
@@ -376,7 +380,7 @@ pub fn search_chain(
     let half = 0.5 * (levels.air + levels.bone);
     let dark = volume.data.iter().filter(|&&v| (v as f64) < half).count();
     let air_percent = 100.0 * dark as f64 / volume.data.len().max(1) as f64;
-    if air_percent < 1.0 {
+    if air_percent < MIN_AIR_PERCENT {
         return Err(SearchError::NoAir {
             air_percent,
             air: levels.air,
@@ -542,4 +546,56 @@ pub fn search_chain(
         coarse_spacing_mm: h,
         seconds: clock.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::Silent;
+
+    fn volume(spacing: f64, value: impl Fn(usize) -> f32) -> Volume {
+        let n = 24;
+        Volume {
+            dims: [n; 3],
+            spacing: [spacing; 3],
+            origin: Vector3::zeros(),
+            direction: Matrix3::identity(),
+            data: (0..n * n * n).map(value).collect(),
+        }
+    }
+
+    fn search(v: &Volume) -> Result<ChainSearch, SearchError> {
+        let right = crate::atlas::load_atlas(None, Some(Side::Right)).unwrap();
+        let left = right.mirrored();
+        let sides = [
+            SideAtlas {
+                side: Side::Right,
+                atlas: &right,
+            },
+            SideAtlas {
+                side: Side::Left,
+                atlas: &left,
+            },
+        ];
+        search_chain(v, &sides, &SearchConfig::default(), &Silent)
+    }
+
+    /// What cannot hold a chain is refused before any search, naming why.
+    #[test]
+    fn coarse_images_and_images_without_air_or_contrast_are_refused() {
+        let noise = |i: usize| ((i * 7919) % 200) as f32;
+        assert!(matches!(
+            search(&volume(0.6, |i| if i % 2 == 0 { -1000.0 } else { 1500.0 })),
+            Err(SearchError::TooCoarse { .. })
+        ));
+        let bone = search(&volume(0.2, |i| 1100.0 + noise(i)));
+        assert!(
+            matches!(bone, Err(SearchError::NoContrast { .. })),
+            "{bone:?}"
+        );
+        // bone with 2 % of its voxels air: contrast, but no cavity
+        let err = search(&volume(0.2, |i| if i % 50 == 0 { -1000.0 } else { 1100.0 })).unwrap_err();
+        assert!(matches!(err, SearchError::NoAir { .. }), "{err:?}");
+        assert!(err.to_string().contains("tympanic cavity"), "{err}");
+    }
 }

@@ -189,6 +189,15 @@ pub enum LandmarkWarning {
         /// Each disagreeing source and its side, e.g. "DICOM laterality: right".
         against: Vec<String>,
     },
+    /// The side stated (`--side` or the DICOM laterality) is not the side whose chain fits
+    /// the image: the mirrored chain fits clearly better.
+    HandednessDisagrees {
+        stated: crate::ear::Side,
+        /// "--side" or "DICOM laterality".
+        source: String,
+        /// How much worse the stated side's chain fits \[fraction\].
+        margin: f64,
+    },
     /// The registered atlas puts a landmark far from its pick: the image does not agree with
     /// the pick (or with its label).
     FarFromRegistration {
@@ -305,6 +314,19 @@ impl std::fmt::Display for LandmarkWarning {
                 "--side {} overrides {}: check that the image and the landmarks are of this ear",
                 chosen.as_str(),
                 against.join(" and ")
+            ),
+            LandmarkWarning::HandednessDisagrees {
+                stated,
+                source,
+                margin,
+            } => write!(
+                f,
+                "the {source} says the {} ear, but the chain in the image is the other ear's: \
+                 the {} ear's chain fits it {:.0} % worse than its mirror image; kept as \
+                 stated: check that the image and the side are of this ear",
+                stated.as_str(),
+                stated.as_str(),
+                100.0 * margin
             ),
             LandmarkWarning::FarFromRegistration {
                 landmark,

@@ -39,6 +39,7 @@ fn kinds(w: &[LandmarkWarning]) -> Vec<String> {
             LandmarkWarning::SuspectedSwap { a, b, .. } => format!("swap {a} {b}"),
             LandmarkWarning::SideOverridden { .. } => "side".into(),
             LandmarkWarning::FarFromRegistration { landmark, .. } => format!("far {landmark}"),
+            LandmarkWarning::HandednessDisagrees { .. } => "handedness".into(),
         })
         .collect()
 }
