@@ -36,9 +36,9 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
 /// its partial volume lost, docs/registration.md), and the least improvement of the chain
 /// MASD over the landmark fit (the target).
 const MASD_MAX_VOXELS: f64 = 0.7;
-const MASD_MAX_MM: f64 = 0.15;
+pub(crate) const MASD_MAX_MM: f64 = 0.15;
 const HD95_MAX_MM_SOFA: f64 = 0.6;
-const HD95_MAX_MM_CT: f64 = 0.9;
+pub(crate) const HD95_MAX_MM_CT: f64 = 0.9;
 const MIN_IMPROVEMENT: f64 = 0.5;
 
 fn run_ok(args: &[&str]) {
@@ -106,7 +106,7 @@ pub(crate) fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
 
 /// The chain's MASD and HD95 from a run's metrics: the fused reference's, or the ossicles'
 /// pooled by area (MASD) and the worst of them (HD95).
-fn chain_scores(m: &Value, which: &str) -> (f64, f64) {
+pub(crate) fn chain_scores(m: &Value, which: &str) -> (f64, f64) {
     let scores = &m["scores"];
     if let Some(c) = scores.get("chain") {
         return (
