@@ -75,8 +75,8 @@ pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
 
 /// The static-pressure sweep of `[validate] static_pressure`: the gate pressures ±1, ±2,
 /// ±4 kPa with the default increments, converged to updates under 1e-4 mm (0.1 % of the
-/// umbo displacement at 1 kPa, against the gates' 25 %; 45 Newton iterations on the default
-/// atlas instead of 60 at 1e-5 mm, the displacements within 0.02 µm).
+/// umbo displacement at 1 kPa, against the gates' 25 %): 55 Newton iterations on the default
+/// atlas (`assets/reference_mechanics.json`, 2026-11-26).
 fn gate_udsp() -> UdspOptions {
     UdspOptions {
         pressures_pa: crate::mechanics::udsp::GATE_PRESSURES_PA.to_vec(),
