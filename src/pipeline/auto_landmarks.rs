@@ -26,8 +26,9 @@ pub fn propose(
     config: &Config,
     progress: &dyn Reporter,
 ) -> Result<Proposal, Error> {
+    // read once; the other ear is its mirror image, as `load_atlas` makes it
     let right = crate::atlas::load_atlas(atlas_dir, Some(Side::Right))?;
-    let left = crate::atlas::load_atlas(atlas_dir, Some(Side::Left))?;
+    let left = right.mirrored();
     let step = image.volume.smallest_spacing();
     let input = ProposeInput {
         sampler,

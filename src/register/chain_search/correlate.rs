@@ -43,8 +43,10 @@ fn smooth_length(n: usize) -> usize {
 
 /// One FFT along `axis` of every line of a grid of size `n` (i fastest).
 fn fft_axis(data: &mut [Complex32], n: [usize; 3], axis: usize, fft: &dyn Fft<f32>) {
+    // one scratch for every line (`Fft::process` would allocate one per call)
+    let mut scratch = vec![Complex32::default(); fft.get_inplace_scratch_len()];
     if axis == 0 {
-        fft.process(data);
+        fft.process_with_scratch(data, &mut scratch);
         return;
     }
     let len = n[axis];
@@ -57,7 +59,7 @@ fn fft_axis(data: &mut [Complex32], n: [usize; 3], axis: usize, fft: &dyn Fft<f3
             for (k, v) in line.iter_mut().enumerate() {
                 *v = data[base + k * stride];
             }
-            fft.process(&mut line);
+            fft.process_with_scratch(&mut line, &mut scratch);
             for (k, v) in line.iter().enumerate() {
                 data[base + k * stride] = *v;
             }
