@@ -299,16 +299,32 @@ fn a_killed_batch_resumes_to_the_same_packages() {
         .arg(samples())
         .spawn()
         .unwrap();
+    // the first case's process has ended and been waited for when its status is written, so
+    // a child seen after that runs the second case
     let first = killed.join("cases/case-001/status.json");
     let deadline = Instant::now() + Duration::from_secs(300);
-    while !first.exists() && Instant::now() < deadline {
+    let mut second_case = Vec::new();
+    while second_case.is_empty() && Instant::now() < deadline {
         if child.try_wait().unwrap().is_some() {
             break;
         }
-        std::thread::sleep(Duration::from_millis(20));
+        if first.exists() {
+            second_case = children_of(child.id());
+        }
+        std::thread::sleep(Duration::from_millis(5));
     }
+    assert!(!second_case.is_empty(), "no process ran the second case");
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
+    // the case's process ends with its batch: it does not go on writing the case's output
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while second_case.iter().any(|&pid| running(pid)) && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(
+        !killed.join("cases/case-002/package").exists(),
+        "the second case's process outlived its batch and wrote the package"
+    );
     let partial = package_files(&killed);
     assert!(
         partial.len() < expected.len(),
@@ -344,6 +360,37 @@ fn a_killed_batch_resumes_to_the_same_packages() {
     )
     .unwrap();
     assert_eq!(status["outcome"], "ok");
+}
+
+/// The processes whose parent is `pid` (from `/proc/*/stat`).
+fn children_of(pid: u32) -> Vec<u32> {
+    let mut children = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(child) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // "PID (COMM) STATE PPID ...": COMM may hold spaces and parentheses
+        let after_comm = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        let ppid = after_comm.split_whitespace().nth(1);
+        if ppid.and_then(|p| p.parse::<u32>().ok()) == Some(pid) {
+            children.push(child);
+        }
+    }
+    children
+}
+
+/// Whether process `pid` exists and is not a zombie.
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        let state = stat
+            .rsplit_once(')')
+            .map_or("", |(_, rest)| rest)
+            .trim_start();
+        !state.starts_with('Z') && !state.starts_with('X')
+    })
 }
 
 /// The "N cases: R ran, S resumed, F failed" line of a batch.

@@ -110,6 +110,9 @@ pub struct Job {
     /// Threads of the child's pool.
     threads: usize,
     memory_limit_mib: Option<u64>,
+    /// The supervising process's id: the child ends with it (a batch killed with SIGKILL
+    /// must not leave children writing into its output).
+    parent: u32,
 }
 
 /// One line of a child's stdout.
@@ -146,6 +149,7 @@ pub fn run_in_child(
         config: config.clone(),
         threads,
         memory_limit_mib: process.memory_limit_mib,
+        parent: std::process::id(),
     };
     let started = Instant::now();
     let error = match supervise(process, &job, &case.id, progress) {
@@ -274,6 +278,10 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
         error: Some(error),
         seconds: started.elapsed().as_secs_f64(),
     };
+    if let Err(e) = end_with_parent(job.parent) {
+        reporter.log(&e);
+        return false;
+    }
     let status = match set_memory_limit(job.memory_limit_mib) {
         Err(e) => failed(format!("cannot set --case-memory-limit: {e}")),
         Ok(()) => match rayon::ThreadPoolBuilder::new()
@@ -303,6 +311,30 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
         },
     };
     reporter.send(&Event::Status(status))
+}
+
+/// Makes this process end when `parent` does (Linux `PR_SET_PDEATHSIG`): a supervisor killed
+/// with SIGKILL cannot stop its children itself, and a child left running would go on
+/// writing the case's output while a resumed batch writes it again. Fails if `parent` has
+/// already ended.
+#[cfg(target_os = "linux")]
+fn end_with_parent(parent: u32) -> Result<(), String> {
+    use rustix::process::{Signal, getppid, set_parent_process_death_signal};
+    set_parent_process_death_signal(Some(Signal::KILL))
+        .map_err(|e| format!("cannot tie the case's process to its batch: {e}"))?;
+    // the parent may have ended before the signal was set: then this process was re-parented
+    if getppid().map(|p| p.as_raw_pid().unsigned_abs()) != Some(parent) {
+        return Err(format!(
+            "the batch that started this case (process {parent}) has ended"
+        ));
+    }
+    Ok(())
+}
+
+/// Elsewhere a child outlives a supervisor killed with SIGKILL.
+#[cfg(not(target_os = "linux"))]
+fn end_with_parent(_parent: u32) -> Result<(), String> {
+    Ok(())
 }
 
 #[cfg(target_os = "linux")]
