@@ -31,6 +31,11 @@ pub enum ImageError {
         max_mib: f64,
     },
     #[error(
+        "{path}: its deflated data set inflates to more than {} (ingest.max_file_mib)",
+        mib(*.max_mib)
+    )]
+    InflatesTooLarge { path: PathBuf, max_mib: f64 },
+    #[error(
         "{folder}: symlink loop at {}; expected a folder of files (remove the link)",
         link.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
     )]

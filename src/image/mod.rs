@@ -22,7 +22,8 @@ pub use volume::Volume;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IngestConfig {
-    /// Largest single input file accepted, in MiB (guards against malformed length fields).
+    /// Largest single input file accepted, and the most a deflated DICOM data set may inflate
+    /// to, in MiB (guards against malformed length fields).
     pub max_file_mib: f64,
     /// Largest image volume held in memory, in MiB of 32-bit voxels: checked from the header's
     /// sizes before any voxel is read.

@@ -4,9 +4,13 @@
 //! body reads every length as gigabytes) took about 4 GB for a 14 KB file. This walk reads only
 //! the element headers, with `dicom-parser`'s lazy reader, and skips each value without
 //! buffering it.
+//!
+//! A deflated data set is inflated here first, under the same cap as a file
+//! (`ingest.max_file_mib`), and its lengths checked against the inflated bytes: a few
+//! kilobytes of deflate can claim gigabytes, and the crate inflates without a bound.
 
 use std::fs::File;
-use std::io::{BufReader, Seek, SeekFrom};
+use std::io::{BufReader, Cursor, Read, Seek, SeekFrom};
 use std::path::Path;
 
 use dicom_encoding::TransferSyntaxIndex;
@@ -23,10 +27,15 @@ use crate::image::ImageError;
 const META_START: u64 = 132;
 
 /// Refuses `path` (of `file_bytes` bytes, with the `DICM` marker) if any element, sequence,
-/// item or fragment claims more bytes than the file has left where it starts. Headers the
-/// lazy reader cannot follow, and transfer syntaxes whose data set is not stored as it is
-/// (deflated) or that the registry does not know, are left to the `dicom` crate.
-pub fn check_element_lengths(path: &Path, file_bytes: u64) -> Result<(), ImageError> {
+/// item or fragment claims more bytes than the file has left where it starts, or if its
+/// deflated data set inflates to more than `max_inflated` bytes (or claims more than the
+/// inflated bytes hold). Headers the lazy reader cannot follow, and transfer syntaxes that
+/// the registry does not know, are left to the `dicom` crate.
+pub fn check_element_lengths(
+    path: &Path,
+    file_bytes: u64,
+    max_inflated: u64,
+) -> Result<(), ImageError> {
     let io_err = |source| ImageError::Io {
         path: path.to_path_buf(),
         source,
@@ -47,12 +56,61 @@ pub fn check_element_lengths(path: &Path, file_bytes: u64) -> Result<(), ImageEr
     let Some(ts) = TransferSyntaxRegistry.get(uid.trim_end_matches(['\0', ' '])) else {
         return Ok(());
     };
-    // a data set stored through a codec (deflated) has lengths of the inflated bytes
-    if !matches!(ts.codec(), Codec::None | Codec::EncapsulatedPixelData(..)) {
-        return Ok(());
-    }
     reader.seek(SeekFrom::Start(meta.end)).map_err(io_err)?;
-    walk(&mut reader, ts, path, file_bytes, false).map(drop)
+    match ts.codec() {
+        Codec::None | Codec::EncapsulatedPixelData(..) => {
+            walk(&mut reader, ts, path, file_bytes, false).map(drop)
+        }
+        // a data set stored through a codec (deflated, explicit VR little endian inside) has
+        // the lengths of the inflated bytes
+        Codec::Dataset(_) => {
+            let inflated = inflate_capped(&mut reader, max_inflated, path)?;
+            let inflated_bytes = inflated.len() as u64;
+            let inner = EXPLICIT_VR_LITTLE_ENDIAN.erased();
+            walk(
+                &mut Cursor::new(inflated),
+                &inner,
+                path,
+                inflated_bytes,
+                false,
+            )
+            .map(drop)
+        }
+    }
+}
+
+/// The raw deflate stream from the reader's position, inflated, if it is no more than `cap`
+/// bytes: counted first without keeping anything, then inflated into a buffer of that size.
+fn inflate_capped(
+    reader: &mut BufReader<File>,
+    cap: u64,
+    path: &Path,
+) -> Result<Vec<u8>, ImageError> {
+    let start = reader.stream_position().unwrap_or(META_START);
+    let corrupt = |e: std::io::Error| ImageError::DicomParse {
+        path: path.to_path_buf(),
+        message: format!("the deflated data set does not inflate: {e}"),
+    };
+    let mut counting = flate2::read::DeflateDecoder::new(&mut *reader).take(cap.saturating_add(1));
+    let size = std::io::copy(&mut counting, &mut std::io::sink()).map_err(corrupt)?;
+    if size > cap {
+        return Err(ImageError::InflatesTooLarge {
+            path: path.to_path_buf(),
+            max_mib: cap as f64 / 1048576.0,
+        });
+    }
+    reader
+        .seek(SeekFrom::Start(start))
+        .map_err(|source| ImageError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let mut inflated = Vec::with_capacity(size as usize);
+    flate2::read::DeflateDecoder::new(reader)
+        .take(size)
+        .read_to_end(&mut inflated)
+        .map_err(corrupt)?;
+    Ok(inflated)
 }
 
 /// What walking the meta group found.
@@ -65,8 +123,8 @@ struct Walked {
 
 /// Walks the elements from the reader's position; with `meta`, only group 0002 (and keeps the
 /// transfer syntax UID).
-fn walk(
-    reader: &mut BufReader<File>,
+fn walk<R: Read + Seek>(
+    reader: &mut R,
     ts: &dicom_encoding::TransferSyntax,
     path: &Path,
     file_bytes: u64,

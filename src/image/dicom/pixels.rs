@@ -2,6 +2,7 @@
 //! stored values taken raw and rescaled with that frame's own slope/intercept, MONOCHROME1
 //! inverted within BitsStored so that larger always means denser.
 
+use std::io::Read;
 use std::path::Path;
 
 use dicom_dictionary_std::tags;
@@ -82,6 +83,7 @@ fn decode_file(
         }
         return Ok(());
     }
+    check_deflated_frames(&obj, file)?;
     let decoded = obj.decode_pixel_data().map_err(|e| err(e.to_string()))?;
     if decoded.rows() as usize != file.rows || decoded.columns() as usize != file.columns {
         return Err(err(format!(
@@ -115,6 +117,46 @@ fn decode_file(
             *o = stored_to_hu.rescale(v, rescale);
         }
         on_plane();
+    }
+    Ok(())
+}
+
+/// Deflated Image Frame Compression: the `dicom` crate inflates each fragment without a bound,
+/// so each is inflated here first, counting only, and one that holds more than a frame of
+/// Rows x Columns x SamplesPerPixel x BitsAllocated is refused before it is decoded.
+fn check_deflated_frames(obj: &InMemDicomObject, file: &ImageFile) -> Result<(), ImageError> {
+    const DEFLATED_IMAGE_FRAME: &str = "1.2.840.10008.1.2.8.1";
+    if file.transfer_syntax != DEFLATED_IMAGE_FRAME {
+        return Ok(());
+    }
+    let path = file.path.as_path();
+    let int = |tag, name| attr::int(obj, tag, name, path);
+    let allocated = int(tags::BITS_ALLOCATED, "BitsAllocated (0028,0100)")?.unwrap_or(16);
+    let samples = int(tags::SAMPLES_PER_PIXEL, "SamplesPerPixel (0028,0002)")?.unwrap_or(1);
+    let frame_bytes = (file.rows * file.columns) as u64
+        * samples.clamp(1, 4) as u64
+        * (allocated.clamp(1, 64) as u64).div_ceil(8);
+    let Some(fragments) = obj
+        .get(tags::PIXEL_DATA)
+        .and_then(|e| e.value().fragments())
+    else {
+        return Ok(());
+    };
+    for (i, fragment) in fragments.iter().enumerate() {
+        let mut frame = flate2::read::DeflateDecoder::new(&fragment[..]).take(frame_bytes + 1);
+        let inflated = std::io::copy(&mut frame, &mut std::io::sink())
+            .map_err(|e| decode_err(path)(format!("fragment {i} does not inflate: {e}")))?;
+        if inflated > frame_bytes {
+            return Err(ImageError::BadValue {
+                path: path.to_path_buf(),
+                tag: "PixelData (7FE0,0010)",
+                value: format!("fragment {i} inflating to more than {frame_bytes} bytes"),
+                expected: format!(
+                    "one frame of {} x {} x {} samples of {allocated} bits",
+                    file.columns, file.rows, samples
+                ),
+            });
+        }
     }
     Ok(())
 }

@@ -169,7 +169,7 @@ fn scan_file(path: &Path, max_bytes: u64) -> Result<Scanned, ImageError> {
             reason: "not a DICOM file".into(),
         });
     }
-    match super::lengths::check_element_lengths(path, size) {
+    match super::lengths::check_element_lengths(path, size, max_bytes) {
         Ok(()) => {}
         Err(e) if is_dicomdir_name(path) => {
             return Ok(Scanned::Skipped {
