@@ -10,11 +10,13 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use otoatlas::config::Config;
 use otoatlas::fem::{FemModel, MembraneElements, TetElements, TetMaterial};
 use otoatlas::image::Sampler;
+use otoatlas::mesh::quality::{ElementFloors, REGISTRATION_SHAPE_QUALITY};
 use otoatlas::mesh::tet::BoundaryOf;
 use otoatlas::mesh::{TetMesh, TriMesh, shapes};
 use otoatlas::meshdev::{CompareOptions, compare};
 use otoatlas::phantom::imaging::{Grid, ImagingParams, render};
 use otoatlas::progress::Silent;
+use otoatlas::register::DeformSettings;
 use otoatlas::register::deform::{
     DeformConfig, ProbeConfig, ProbeKind, ProbeTriangle, deform, probe,
 };
@@ -74,7 +76,8 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         .unwrap()
         .distances;
 
-    let result = deform(&model, &probes, &sampler, 0.2, &cfg, &Silent).unwrap();
+    let floors = ElementFloors::new(&mesh.tets, &nodes, &nodes, REGISTRATION_SHAPE_QUALITY);
+    let result = deform(&model, &floors, &probes, &sampler, 0.2, &cfg, &Silent).unwrap();
     let after = compare(&surface(&result.positions), &truth, &options)
         .unwrap()
         .distances;
@@ -174,12 +177,16 @@ fn the_surface_level_moves_a_stretched_block_onto_the_imaged_block() {
         let mut x = nodes.clone();
         let record = refine(
             &mesh,
+            &nodes,
             &probes,
             &mut x,
             &sampler,
             0.2,
-            &config.deform,
-            &config.refine,
+            DeformSettings {
+                articulate: &config.articulate,
+                deform: &config.deform,
+                refine: &config.refine,
+            },
         );
         let after = compare(&surface(&x), &truth, &options).unwrap().distances;
         mesh.nodes = x;

@@ -39,7 +39,8 @@ pub fn exit_status(err: &Error) -> ExitStatus {
         // a numerical failure of valid input is the case's failure; nothing found around the
         // placed atlas means the image or the landmarks are not this ear's
         Error::Deform(e) => match e {
-            crate::register::deform::DeformError::Fem(_) => ExitStatus::CaseFailed,
+            crate::register::deform::DeformError::Fem(_)
+            | crate::register::deform::DeformError::FlatElement { .. } => ExitStatus::CaseFailed,
             crate::register::deform::DeformError::NothingFound => ExitStatus::BadInput,
         },
         // no chain in the image is the input's fault; a failed registration of the chain found

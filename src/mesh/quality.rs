@@ -13,6 +13,139 @@ use nalgebra::{Point3, Vector3};
 use super::TetMesh;
 use super::tet::{TET_FACES, signed_volume};
 
+/// Least shape quality ([`shape_quality`]; 1 regular, 0 flat) a registered tetrahedron may
+/// keep. A near-flat element is stiff in some directions and nearly free in others, which
+/// ill-conditions a simulator's stiffness of the whole chain: `verify` refuses a package
+/// below it, and the registration never leaves an element there.
+pub const MIN_SHAPE_QUALITY: f64 = 0.02;
+/// Least volume a registered tetrahedron may keep over its counterpart's in the reference
+/// (the atlas, scaled by the landmark fit): `verify`'s and the registration's floor too.
+pub const MIN_VOLUME_RATIO: f64 = 0.05;
+
+/// The registration's own floor on shape quality, a quarter above [`MIN_SHAPE_QUALITY`]: its
+/// levels keep every element above it (or, one that starts lower, near what it had), so that
+/// a package written with rounded coordinates still clears `verify`'s floor.
+pub const REGISTRATION_SHAPE_QUALITY: f64 = 1.25 * MIN_SHAPE_QUALITY;
+
+/// The registration's own floor on volume over the reference's, a quarter above
+/// [`MIN_VOLUME_RATIO`], for the same reason.
+pub const REGISTRATION_VOLUME_RATIO: f64 = 1.25 * MIN_VOLUME_RATIO;
+
+/// The fraction of its shape quality that an element below a level's own floor may lose in
+/// that level.
+const SLIVER_KEEP: f64 = 0.9;
+
+/// The least each tetrahedron may keep in one level of the registration, set at the level's
+/// start: no element goes below the registration's floors
+/// ([`REGISTRATION_SHAPE_QUALITY`], [`REGISTRATION_VOLUME_RATIO`] of its volume in the
+/// reference) unless it starts there, and then no lower.
+#[derive(Debug, Clone)]
+pub struct ElementFloors {
+    /// The tetrahedra, each ordered to a positive volume at the level's start.
+    tets: Vec<[u32; 4]>,
+    quality: Vec<f64>,
+    volume: Vec<f64>,
+}
+
+impl ElementFloors {
+    /// The floors of `tets` for a level starting at `start`, volumes compared with those at
+    /// `reference` (the placed atlas). `least_quality` is the level's own floor on shape
+    /// quality (at least the registration's): an element below it at `start` may lose a
+    /// tenth of its quality, no more.
+    pub fn new(
+        tets: &[[u32; 4]],
+        reference: &[Point3<f64>],
+        start: &[Point3<f64>],
+        least_quality: f64,
+    ) -> ElementFloors {
+        let tets: Vec<[u32; 4]> = tets
+            .iter()
+            .map(|&[a, b, c, d]| {
+                if volume(start, &[a, b, c, d]) < 0.0 {
+                    [b, a, c, d]
+                } else {
+                    [a, b, c, d]
+                }
+            })
+            .collect();
+        let quality = tets
+            .iter()
+            .map(|t| {
+                let q = shape_quality(&corners(start, t));
+                least_quality
+                    .min(SLIVER_KEEP * q)
+                    .max(REGISTRATION_SHAPE_QUALITY.min(q))
+            })
+            .collect();
+        let volume = tets
+            .iter()
+            .map(|t| (REGISTRATION_VOLUME_RATIO * volume(reference, t).abs()).min(volume(start, t)))
+            .collect();
+        ElementFloors {
+            tets,
+            quality,
+            volume,
+        }
+    }
+
+    /// The tetrahedra that `x` leaves below their floors (inverted ones too), each with its
+    /// shape quality there, in mesh order.
+    pub fn failing(&self, x: &[Point3<f64>]) -> Vec<(usize, f64)> {
+        self.tets
+            .iter()
+            .enumerate()
+            .filter_map(|(e, t)| {
+                let q = shape_quality(&corners(x, t));
+                (q < self.quality[e] || volume(x, t) < self.volume[e]).then_some((e, q))
+            })
+            .collect()
+    }
+}
+
+/// The corners of tetrahedron `t` at `p`.
+fn corners(p: &[Point3<f64>], t: &[u32; 4]) -> [Point3<f64>; 4] {
+    t.map(|k| p[k as usize])
+}
+
+/// The signed volume of tetrahedron `t` at `p`.
+fn volume(p: &[Point3<f64>], t: &[u32; 4]) -> f64 {
+    let [a, b, c, d] = corners(p, t);
+    signed_volume(&a, &b, &c, &d)
+}
+
+/// The tetrahedron of a registered mesh that is furthest below [`MIN_SHAPE_QUALITY`] or
+/// [`MIN_VOLUME_RATIO`], with both of its figures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlatElement {
+    /// Its index in mesh order (0-based).
+    pub tetrahedron: usize,
+    pub shape_quality: f64,
+    pub volume_ratio: f64,
+}
+
+/// The worst tetrahedron of `tets` at `x` that breaks either floor, its volume compared with
+/// that at `reference` (the same nodes, similar to the atlas); `None` if none breaks them.
+pub fn flattest_below_floors(
+    tets: &[[u32; 4]],
+    reference: &[Point3<f64>],
+    x: &[Point3<f64>],
+) -> Option<FlatElement> {
+    tets.iter()
+        .enumerate()
+        .map(|(t, tet)| FlatElement {
+            tetrahedron: t,
+            shape_quality: shape_quality(&corners(x, tet)),
+            volume_ratio: volume(x, tet) / volume(reference, tet).max(f64::MIN_POSITIVE),
+        })
+        .filter(|e| e.shape_quality < MIN_SHAPE_QUALITY || e.volume_ratio < MIN_VOLUME_RATIO)
+        .min_by(|e, f| {
+            let below = |e: &FlatElement| {
+                (e.shape_quality / MIN_SHAPE_QUALITY).min(e.volume_ratio / MIN_VOLUME_RATIO)
+            };
+            below(e).total_cmp(&below(f))
+        })
+}
+
 /// Quality summary of a set of tets. Angles in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct QualityStats {

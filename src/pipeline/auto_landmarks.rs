@@ -12,7 +12,7 @@ use crate::ear::{LandmarkName, Side, write_fcsv_described, write_json_with};
 use crate::image::{LoadedImage, Sampler};
 use crate::pipeline::Error;
 use crate::progress::Reporter;
-use crate::register::atlas_fit::DeformSettings;
+use crate::register::DeformSettings;
 use crate::register::auto_landmarks::{Proposal, ProposeInput, SideSource, propose_landmarks};
 
 /// Proposes the landmarks of `image` with the atlas at `atlas_dir` (the embedded one when

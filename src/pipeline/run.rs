@@ -35,9 +35,8 @@ use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
 use crate::pipeline::auto_landmarks::{proposal_record, propose};
 use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
-use crate::register::atlas_fit::{
-    DeformRecord, DeformSettings, LevelSeconds, deform_atlas, fit_landmarks, place,
-};
+use crate::register::DeformSettings;
+use crate::register::atlas_fit::{DeformRecord, LevelSeconds, deform_atlas, fit_landmarks, place};
 use crate::register::auto_landmarks::{Proposal, SideSource};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{

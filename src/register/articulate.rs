@@ -90,6 +90,11 @@ pub struct Articulation {
     pub target_gap_mm: f64,
     /// The stapes's turn about its head searched before the fit (absent when not searched).
     pub stapes_turn: Option<StapesTurn>,
+    /// Why the atlas was carried only part of the way to the poses (all the way would have
+    /// left an element below the registration's floors, `mesh::quality`), and how far.
+    /// Absent when it was carried all the way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shortened: Option<String>,
 }
 
 /// A rigid motion about a pivot: x ↦ R (x − pivot) + pivot + t.
@@ -321,6 +326,7 @@ pub fn articulate(
         joint_gap_mm,
         target_gap_mm: 0.0,
         stapes_turn,
+        shortened: None,
     };
     (targets, record)
 }

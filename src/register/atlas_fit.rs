@@ -10,18 +10,17 @@ use std::time::Instant;
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
-use super::articulate::{ArticulateConfig, Articulation, articulate, articulated_shape};
-use super::deform::{
-    DeformConfig, DeformError, DeformResult, DeformStatus, IterationStats, deform,
-};
+use super::DeformSettings;
+use super::articulate::{Articulation, articulate, articulated_shape};
+use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, deform};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::probes::probe_triangles;
-use super::refine::{RefineConfig, Refinement, refine};
+use super::refine::{Refinement, refine};
 use super::rigid::{RigidFit, fit_similarity};
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
-use crate::mesh::tet::signed_volume;
+use crate::mesh::quality::{ElementFloors, REGISTRATION_SHAPE_QUALITY, flattest_below_floors};
 use crate::progress::Reporter;
 
 /// Fits the atlas landmarks onto the patient's; `None` when the patient's are degenerate.
@@ -37,25 +36,6 @@ pub fn place(atlas: &Atlas, fit: &RigidFit) -> Vec<Point3<f64>> {
         .iter()
         .map(|p| fit.transform.apply(p))
         .collect()
-}
-
-/// No tetrahedron may keep less than this fraction of its volume in the placed atlas after a
-/// rest-shape update (each level's FEM only keeps it above a tenth of its own rest volume).
-const MIN_VOLUME_RATIO: f64 = 0.05;
-
-/// The smallest ratio of a tetrahedron's volume at `x` to its volume at `placed`.
-fn smallest_volume_ratio(atlas: &Atlas, placed: &[Point3<f64>], x: &[Point3<f64>]) -> f64 {
-    let volume = |p: &[Point3<f64>], t: &[u32; 4]| {
-        let [a, b, c, d] = t.map(|k| p[k as usize]);
-        signed_volume(&a, &b, &c, &d)
-    };
-    atlas
-        .mesh
-        .tets
-        .tets
-        .iter()
-        .map(|t| volume(x, t) / volume(placed, t).max(f64::MIN_POSITIVE))
-        .fold(f64::INFINITY, f64::min)
 }
 
 /// Wall-clock seconds of each level of the deformable stage.
@@ -112,14 +92,6 @@ impl Registered {
     }
 }
 
-/// The settings of the deformable stage's levels.
-#[derive(Debug, Clone, Copy)]
-pub struct DeformSettings<'a> {
-    pub articulate: &'a ArticulateConfig,
-    pub deform: &'a DeformConfig,
-    pub refine: &'a RefineConfig,
-}
-
 /// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and
 /// their connective tissue through the FEM (its rest shape the articulated atlas), then the
 /// eardrum. `step` is the probe step (the smallest voxel spacing, mm).
@@ -144,7 +116,37 @@ pub fn deform_atlas(
             cfg.regularisation_modulus_pa,
             &mut record,
         )?;
-        (x, Some(record))
+        // the carry may squeeze a joint element flat where two bones close in on it: the
+        // atlas then goes the largest part of the way (from the placed atlas, in quarters)
+        // that keeps every element above the floors
+        let flat = flattest_below_floors(&atlas.mesh.tets.tets, placed, &x);
+        match flat {
+            None => (x, Some(record)),
+            Some(flat) => {
+                let part_way = |t: f64| -> Vec<Point3<f64>> {
+                    placed
+                        .iter()
+                        .zip(&x)
+                        .map(|(p, q)| p + (q - p) * t)
+                        .collect()
+                };
+                let t = [0.75, 0.5, 0.25, 0.0]
+                    .into_iter()
+                    .find(|&t| {
+                        flattest_below_floors(&atlas.mesh.tets.tets, placed, &part_way(t)).is_none()
+                    })
+                    .unwrap_or(0.0);
+                record.shortened = Some(format!(
+                    "carried {:.0} % of the way: all the way, tetrahedron {} would keep shape \
+                     quality {:.3} and {:.3} of its atlas volume",
+                    100.0 * t,
+                    flat.tetrahedron,
+                    flat.shape_quality,
+                    flat.volume_ratio
+                ));
+                (part_way(t), Some(record))
+            }
+        }
     } else {
         (placed.to_vec(), None)
     };
@@ -158,11 +160,18 @@ pub fn deform_atlas(
     let mut result: Option<DeformResult> = None;
     for level_index in 0..=cfg.rest_updates {
         let model = atlas.fem_model(&rest, moduli, false)?;
-        let level = deform(&model, &probes, sampler, step, cfg, progress)?;
-        // a later level may not flatten an element: the FEM only guards against inversion,
-        // and each level regularises from the last one's shape
+        let floors = ElementFloors::new(
+            &atlas.mesh.tets.tets,
+            placed,
+            &rest,
+            REGISTRATION_SHAPE_QUALITY,
+        );
+        let level = deform(&model, &floors, &probes, sampler, step, cfg, progress)?;
+        // a later level may not flatten an element (`mesh::quality`'s floors): the FEM only
+        // keeps a tenth of each element's volume at its own rest shape, and each level
+        // regularises from the last one's shape
         if level_index > 0
-            && smallest_volume_ratio(atlas, placed, &level.positions) < MIN_VOLUME_RATIO
+            && flattest_below_floors(&atlas.mesh.tets.tets, placed, &level.positions).is_some()
         {
             break;
         }
@@ -193,18 +202,31 @@ pub fn deform_atlas(
     let refinement = refine_cfg.enabled.then(|| {
         refine(
             &atlas.mesh.tets,
+            placed,
             &probes,
             &mut result.positions,
             sampler,
             step,
-            cfg,
-            refine_cfg,
+            settings,
         )
     });
     seconds.refine = clock.elapsed().as_secs_f64();
     let clock = Instant::now();
     let eardrum = fit_eardrum(atlas, placed, &mut result.positions, sampler, step, cfg);
     seconds.eardrum = clock.elapsed().as_secs_f64();
+    // the levels each keep the floors from where they start; an element the first FEM level or
+    // the articulation left below them is refused here rather than written into a package
+    if let Some(flat) = flattest_below_floors(&atlas.mesh.tets.tets, placed, &result.positions) {
+        let region = atlas.mesh.tets.regions[flat.tetrahedron];
+        return Err(DeformError::FlatElement {
+            tetrahedron: flat.tetrahedron,
+            region: atlas
+                .region(region)
+                .map_or_else(|| format!("region {region}"), |r| r.name.clone()),
+            shape_quality: flat.shape_quality,
+            volume_ratio: flat.volume_ratio,
+        });
+    }
     Ok(Registered {
         articulation,
         deform: result,

@@ -6,7 +6,8 @@
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
-use super::atlas_fit::{DeformSettings, deform_atlas};
+use super::DeformSettings;
+use super::atlas_fit::deform_atlas;
 use super::chain_search::{ChainSearch, SearchConfig, SearchError, SideAtlas, search_chain};
 use super::deform::{DeformError, probe_surface};
 use super::landmarks::LandmarkWarning;

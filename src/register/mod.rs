@@ -14,5 +14,13 @@ pub mod rigid;
 pub mod stapes_turn;
 
 pub use crate::ear::Side;
+
+/// The settings of the deformable stage's levels (`[articulate]`, `[deform]`, `[refine]`).
+#[derive(Debug, Clone, Copy)]
+pub struct DeformSettings<'a> {
+    pub articulate: &'a articulate::ArticulateConfig,
+    pub deform: &'a deform::DeformConfig,
+    pub refine: &'a refine::RefineConfig,
+}
 pub use landmarks::{LandmarkName, Landmarks};
 pub use rigid::{RigidFit, SimilarityTransform, fit_similarity};

@@ -16,10 +16,13 @@
 //!   sparse Cholesky per solve on a symbolic analysis made once: found nodes move to their
 //!   edges, nodes without a find (the faces on the joints, ligaments and tendons) and the
 //!   interior follow harmonically;
-//! - where a round's move would invert or flatten an element (its shape quality below
-//!   `MIN_QUALITY`; an element already below may lose at most a tenth of it), the element's
-//!   nodes give up their own offsets and their edges stiffen, and the round is solved again,
-//!   up to `MAX_STIFFENINGS` times; after that the level stops at its last admissible shape.
+//! - where a round's move would invert or flatten an element, the element's nodes give up
+//!   their own offsets and their edges stiffen, and the round is solved again, up to
+//!   `MAX_STIFFENINGS` times; after that the level stops at its last admissible shape. Flat
+//!   means a shape quality below `MIN_QUALITY`, or, for an element the level found below it,
+//!   below nine tenths of what it had at the level's start; and never below the package's
+//!   floors (`mesh::quality`: shape quality and volume against the placed atlas) unless the
+//!   element started there, and then no lower.
 //!
 //! The level stops when the mean border offset no longer falls (by `PLATEAU`) or after
 //! `rounds` rounds.
@@ -31,19 +34,18 @@ use faer::{Mat, Side};
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::DeformSettings;
 use super::deform::{
-    DeformConfig, ProbeConfig, ProbeTriangle, kept_offsets, node_displacements, probe_borders,
-    screen, triangle_neighbours,
+    ProbeConfig, ProbeTriangle, kept_offsets, node_displacements, probe_borders, screen,
+    triangle_neighbours,
 };
 use crate::image::Sampler;
-use crate::mesh::quality::shape_quality;
+use crate::mesh::quality::ElementFloors;
 use crate::mesh::tet::TetMesh;
 
 /// No move may leave an element's shape quality (its volume over the regular tetrahedron's
 /// of its RMS edge; 1 regular, 0 flat) below this...
 const MIN_QUALITY: f64 = 0.05;
-/// ... or, for an element already below it, below this fraction of its quality before.
-const SLIVER_KEEP: f64 = 0.9;
 /// Times a round is solved again with the nodes of the elements it would flatten stiffened,
 /// before the level stops...
 const MAX_STIFFENINGS: usize = 6;
@@ -119,16 +121,19 @@ impl RefineStop {
 }
 
 /// Moves `x` (all atlas nodes; those of no tetrahedron are left alone) onto the bone edges
-/// probed from `probes` (with the deformable stage's probe and screening, `deform`).
+/// probed from `probes` (with the deformable stage's probe and screening, `settings.deform`;
+/// the level's knobs `settings.refine`). Element volumes are held against `reference` (the
+/// placed atlas).
 pub fn refine(
     mesh: &TetMesh,
+    reference: &[Point3<f64>],
     probes: &[ProbeTriangle],
     x: &mut [Point3<f64>],
     sampler: &Sampler,
     step: f64,
-    deform: &DeformConfig,
-    cfg: &RefineConfig,
+    settings: DeformSettings,
 ) -> Refinement {
+    let (deform, cfg) = (settings.deform, settings.refine);
     let n = x.len();
     let probe_cfg = ProbeConfig {
         search_range_mm: cfg.search_range_mm,
@@ -136,6 +141,7 @@ pub fn refine(
     };
     let neighbours = triangle_neighbours(probes, n);
     let start: Vec<Point3<f64>> = x.to_vec();
+    let floors = ElementFloors::new(&mesh.tets, reference, &start, MIN_QUALITY);
     let mut record = Refinement {
         rounds: 0,
         mean_offset_first_mm: None,
@@ -172,7 +178,8 @@ pub fn refine(
         }
         best = mean_offset;
         let (data, area) = node_displacements(probes, &borders, &kept, x);
-        match admissible_move(mesh, &system, x, &data, relative(&area), cfg.smoothness) {
+        let weight = relative(&area);
+        match admissible_move(mesh, &floors, &system, x, &data, weight, cfg.smoothness) {
             Ok((moved, stiffened)) => {
                 x.copy_from_slice(&moved);
                 record.stiffened_nodes = stiffened;
@@ -223,25 +230,25 @@ fn relative(area: &[f64]) -> Vec<f64> {
 /// moved nodes with the number of nodes stiffened.
 fn admissible_move(
     mesh: &TetMesh,
+    floors: &ElementFloors,
     system: &Smoothing,
     x: &[Point3<f64>],
     data: &[Vector3<f64>],
     mut weight: Vec<f64>,
     smoothness: f64,
 ) -> Result<(Vec<Point3<f64>>, usize), RefineStop> {
-    let floors = quality_floors(mesh, x);
     let mut stiffness = vec![1.0f64; x.len()];
     for _ in 0..=MAX_STIFFENINGS {
         let u = system
             .solve(data, &weight, &stiffness, smoothness)
             .ok_or(RefineStop::Factorisation)?;
         let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
-        let failing = failing_elements(mesh, &floors, &trial);
+        let failing = floors.failing(&trial);
         if failing.is_empty() {
             let stiffened = stiffness.iter().filter(|s| **s > 1.0).count();
             return Ok((trial, stiffened));
         }
-        for t in failing {
+        for (t, _) in failing {
             for k in mesh.tets[t] {
                 weight[k as usize] = 0.0;
                 stiffness[k as usize] *= STIFFEN;
@@ -317,26 +324,4 @@ impl Smoothing {
                 .collect(),
         )
     }
-}
-
-/// The least shape quality each tetrahedron may keep after a move from `before`:
-/// [`MIN_QUALITY`], or, for one already below it (a sliver of the atlas, an element the FEM
-/// levels flattened), [`SLIVER_KEEP`] of its quality at `before`.
-fn quality_floors(mesh: &TetMesh, before: &[Point3<f64>]) -> Vec<f64> {
-    mesh.tets
-        .iter()
-        .map(|t| MIN_QUALITY.min(SLIVER_KEEP * quality(before, t)))
-        .collect()
-}
-
-/// The tetrahedra whose shape quality at `after` falls below their floor.
-fn failing_elements(mesh: &TetMesh, floors: &[f64], after: &[Point3<f64>]) -> Vec<usize> {
-    (0..mesh.tets.len())
-        .filter(|&t| quality(after, &mesh.tets[t]) < floors[t])
-        .collect()
-}
-
-/// The shape quality of tetrahedron `t` at `p` (`mesh::quality::shape_quality`).
-fn quality(p: &[Point3<f64>], t: &[u32; 4]) -> f64 {
-    shape_quality(&t.map(|k| p[k as usize]))
 }

@@ -3,9 +3,9 @@
 //! others, which ill-conditions the bone stiffness of the whole chain; so `verify` bounds
 //! each tetrahedron's shape quality (`mesh::quality::shape_quality`) and, against the atlas
 //! the package was registered from, its volume over its atlas counterpart's (scaled by the
-//! landmark fit's scale³). The bounds are below what the registration keeps (its surface
-//! level holds the shape quality at 0.05 or 0.9 of what the FEM levels left; the FEM levels
-//! keep a tenth of each level's rest volume and 0.05 of the placed atlas's).
+//! landmark fit's scale³). The bounds are the registration's own floors
+//! (`mesh::quality::MIN_SHAPE_QUALITY`, `MIN_VOLUME_RATIO`): `run` refuses to write a package
+//! below them, so `verify` flags only packages made otherwise or changed since.
 
 use serde::Serialize;
 
@@ -13,12 +13,7 @@ use super::faults::Faults;
 use crate::atlas::Atlas;
 use crate::mesh::io::VolumeMesh;
 use crate::mesh::quality::shape_quality;
-
-/// Least shape quality of a tetrahedron (its volume over the regular tetrahedron's of the
-/// same RMS edge; 1 regular, 0 flat).
-pub const MIN_SHAPE_QUALITY: f64 = 0.02;
-/// Least volume of a tetrahedron over its atlas counterpart's times the scale³.
-pub const MIN_VOLUME_RATIO: f64 = 0.05;
+pub use crate::mesh::quality::{MIN_SHAPE_QUALITY, MIN_VOLUME_RATIO};
 
 /// The worst tetrahedra found (0-based indices in mesh order).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

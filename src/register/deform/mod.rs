@@ -18,7 +18,11 @@
 //!   stage keeps the last valid state and goes on with the springs around the element that
 //!   would invert (within `SOFTEN_RADIUS_MM`) half as stiff, so the FEM smooths more there
 //!   while the rest of the chain keeps converging; after four halvings at one place it stops
-//!   there and says so.
+//!   there and says so. A step that would flatten an element below its `floors`
+//!   (`mesh::quality::ElementFloors`) is refused the same way. The FEM's own guard keeps a
+//!   tenth of each element's volume at the level's rest shape, not its shape: on phantoms of
+//!   real chains, springs on the bone around a soft tendon or joint element sheared it flat
+//!   (shape quality 0.007-0.018, which `verify` refuses in a package).
 
 mod probe;
 
@@ -28,6 +32,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fem::{ElementId, FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
 use crate::image::Sampler;
+use crate::mesh::quality::ElementFloors;
 use crate::progress::Reporter;
 pub use probe::{Border, ProbeConfig, ProbeKind, probe};
 
@@ -135,7 +140,8 @@ pub enum DeformStatus {
         mean_offset_mm: f64,
     },
     MaxIterations,
-    /// No admissible (non-inverting) step existed; the last valid state is returned.
+    /// No admissible step (one that inverts or flattens no element) existed; the last valid
+    /// state is returned.
     InversionGuard {
         message: String,
     },
@@ -169,12 +175,25 @@ pub enum DeformError {
         "deformable registration: no boundary found in the image around the atlas surface (is the image of the same ear, and are the landmarks right?)"
     )]
     NothingFound,
+    #[error(
+        "deformable registration: tetrahedron {tetrahedron} ({region}) would be left at shape quality {shape_quality:.3} (floor {}) and {volume_ratio:.3} of its atlas volume (floor {}); no package is written, as its stiffness would ill-condition a simulation (check the landmarks and the image)",
+        crate::mesh::quality::MIN_SHAPE_QUALITY,
+        crate::mesh::quality::MIN_VOLUME_RATIO
+    )]
+    FlatElement {
+        tetrahedron: usize,
+        region: String,
+        shape_quality: f64,
+        volume_ratio: f64,
+    },
 }
 
 /// Runs the stage on `model`, whose rest shape is the rigidly placed atlas; returns the
-/// registered node positions. `step` is the probe step (the smallest voxel spacing, mm).
+/// registered node positions. `step` is the probe step (the smallest voxel spacing, mm); no
+/// step leaves a tetrahedron below its `floors`.
 pub fn deform(
     model: &FemModel,
+    floors: &ElementFloors,
     probes: &[ProbeTriangle],
     sampler: &Sampler,
     step: f64,
@@ -235,22 +254,32 @@ pub fn deform(
             spring_scale: spring_scale.iter().copied().fold(1.0, f64::min),
         });
         bar.inc(1);
-        match outcome {
-            Ok(_) | Err(FemError::NotConverged { .. }) => {}
-            // the springs pull some element inside out: keep the last admissible state and
-            // go on with softer springs (the FEM then smooths more); give up when they are
-            // too soft to register anything
-            Err(e @ FemError::StepRejected { element, .. }) => {
-                if soften_around(model, element, &x, &mut spring_scale) < MIN_SPRING_SCALE {
-                    status = DeformStatus::InversionGuard {
-                        message: e.to_string(),
-                    };
-                    break;
-                }
-                stalled = 0;
-                continue;
+        // the springs pull some element inside out, or flat: keep the last admissible state
+        // and go on with softer springs around it (the FEM then smooths more there); give up
+        // when they are too soft to register anything
+        let rejected = match outcome {
+            Ok(_) | Err(FemError::NotConverged { .. }) => {
+                floors.failing(&x).first().map(|&(element, quality)| {
+                    x = before;
+                    (
+                        ElementId::Tet(element),
+                        format!(
+                            "a step would flatten tetrahedron {element} (shape quality \
+                             {quality:.3}, or its volume)"
+                        ),
+                    )
+                })
             }
+            Err(e @ FemError::StepRejected { element, .. }) => Some((element, e.to_string())),
             Err(e) => return Err(e.into()),
+        };
+        if let Some((element, message)) = rejected {
+            if soften_around(model, element, &x, &mut spring_scale) < MIN_SPRING_SCALE {
+                status = DeformStatus::InversionGuard { message };
+                break;
+            }
+            stalled = 0;
+            continue;
         }
         // equilibrium: the nodes stopped moving, or the borders stopped getting closer (in a
         // noisy image the border points jitter by a fraction of a voxel from one iteration
