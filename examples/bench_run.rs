@@ -29,6 +29,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             side: None,
             keep_phi: false,
             auto_landmarks: AutoLandmarks::Never,
+            condition: otoatlas::mechanics::Condition::Normal,
         };
         let names: Vec<&str> = Stage::ALL
             .iter()

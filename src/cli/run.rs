@@ -10,6 +10,7 @@ use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::Side;
+use crate::mechanics::Condition;
 use crate::pipeline::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::progress::Reporter;
 
@@ -53,6 +54,10 @@ pub struct RunArgs {
     /// Start at this stage, reusing the artefacts of the earlier ones in OUT/stages/.
     #[arg(long, value_enum, default_value = "ingest")]
     pub from: Stage,
+    /// The ear's condition the package models: the same registration, the materials of a
+    /// pathology (docs/mechanics.md, "Pathologies"), for rehearsing its surgery.
+    #[arg(long, value_enum, default_value = "normal")]
+    pub condition: Condition,
     /// Copy the DICOM patient fields (name, ID, birth date, institution, accession) into the
     /// package manifest; without it no patient-identifying field is written anywhere.
     #[arg(long)]
@@ -81,6 +86,7 @@ pub fn run(
             true => AutoLandmarks::Always,
             false => AutoLandmarks::Never,
         },
+        condition: args.condition,
     };
     let summary = run_case(&case, &opts, &config, progress)?;
     let m = &summary.metrics;

@@ -4,6 +4,7 @@
 //! `atlas_to_patient` transform, a registration summary, the mesh counts, and the SHA-256 of
 //! every other file. Nothing in it depends on the time, the machine or a path.
 
+use crate::mechanics::Condition;
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
@@ -152,7 +153,12 @@ pub struct Manifest {
     /// The SOFA versions the scene is correct on (`sofa::SOFA_VERSIONS`).
     pub sofa_versions: String,
     pub side: Side,
+    /// The atlas as the package holds it (`atlas.json`, the scene's materials): the source
+    /// atlas under `condition`.
     pub atlas: AtlasRef,
+    /// The ear's condition the package models (`run --condition`); absent for a normal ear.
+    #[serde(default, skip_serializing_if = "Condition::is_normal")]
+    pub condition: Condition,
     /// SHA-256 of the DICOM SeriesInstanceUID (None for NIfTI input); never the UID.
     pub series_uid_sha256: Option<String>,
     /// SHA-256 over the case's input files (image, landmark file, segmentation), as `run`

@@ -23,6 +23,7 @@ use crate::config::Config;
 use crate::ear::write_mrk_json;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::{io_err, write_atomic, write_dir_atomic, write_json_file};
+use crate::mechanics::Condition;
 use crate::mesh::io::gmsh::write_msh;
 use crate::register::atlas_fit::DeformRecord;
 use crate::register::rigid::RigidFit;
@@ -33,8 +34,11 @@ pub const PACKAGE_DIR: &str = "package";
 /// Everything a package is made of.
 #[derive(Debug, Clone)]
 pub struct PackageInput<'a> {
-    /// The atlas as the run used it (mirrored to the case's side), at its rest shape.
+    /// The atlas as the run used it (mirrored to the case's side), at its rest shape, under
+    /// `condition`.
     pub atlas: &'a Atlas,
+    /// The ear's condition `atlas` was made for (`mechanics::Condition::apply`).
+    pub condition: Condition,
     /// The registered node positions (LPS mm).
     pub nodes: &'a [Point3<f64>],
     pub fit: &'a RigidFit,
@@ -132,6 +136,7 @@ fn write_parts(dir: &Path, input: &PackageInput) -> Result<Manifest, ExportError
             name: atlas.name.clone(),
             sha256: atlas_sha256(atlas)?,
         },
+        condition: input.condition,
         series_uid_sha256: input.series_uid_sha256.clone(),
         inputs_sha256: input.inputs_sha256.clone(),
         config_sha256: input.config.sha256(),
@@ -178,6 +183,7 @@ mod tests {
         }))
         .unwrap();
         let input = PackageInput {
+            condition: Condition::Normal,
             atlas: &atlas,
             nodes: atlas.nodes(),
             fit: &fit,

@@ -40,6 +40,21 @@ pub enum Condition {
 }
 
 impl Condition {
+    /// The name the command line and the records use (`stapes-fixation`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Condition::Normal => "normal",
+            Condition::StapesFixation => "stapes-fixation",
+            Condition::MalleusFixation => "malleus-fixation",
+            Condition::IsDisarticulation => "is-disarticulation",
+        }
+    }
+
+    /// Whether this is the normal ear (for serde's `skip_serializing_if`).
+    pub fn is_normal(&self) -> bool {
+        *self == Condition::Normal
+    }
+
     /// The atlas of an ear in this condition (the same mesh and nodes).
     pub fn apply(self, atlas: &Atlas) -> Result<Atlas, MechanicsError> {
         let mut ear = atlas.clone();

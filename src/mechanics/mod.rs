@@ -15,7 +15,7 @@ pub mod validate;
 pub mod verdict;
 
 pub use boundary::{MechanicalSystem, TiedPoint};
-pub use condition::Condition;
+pub use condition::{Condition, FIXATION_FACTOR};
 pub use error::MechanicsError;
 pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};

@@ -22,6 +22,7 @@ use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
 use crate::export::{atlas_sha256, verify_package};
 use crate::io_util::write_json_file;
+use crate::mechanics::Condition;
 use crate::progress::Reporter;
 
 /// What `batch` is asked to do besides the cases and the configuration.
@@ -127,6 +128,7 @@ fn run_one(
         keep_phi: opts.keep_phi,
         // a case without a landmark file has them proposed from its image
         auto_landmarks: AutoLandmarks::WhenMissing,
+        condition: Condition::Normal,
     };
     let status = match &opts.child {
         Some(process) => run_in_child(process, case, &run_opts, config, child_threads, progress),

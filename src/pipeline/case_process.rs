@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::config::Config;
+use crate::mechanics::Condition;
 use crate::progress::{Reporter, Silent, Task};
 
 /// How one case of the cohort ended, as `DIR/cases/ID/status.json` records it.
@@ -305,6 +306,7 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
                     side: None,
                     keep_phi: job.keep_phi,
                     auto_landmarks: AutoLandmarks::WhenMissing,
+                    condition: Condition::Normal,
                 };
                 pool.install(|| run_here(&case, &run_opts, &job.config, &reporter))
             }

@@ -29,6 +29,7 @@ use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
 use crate::image::{self, ImageRecord, LoadedImage, Sampler};
 use crate::io_util::{write_atomic, write_json_file};
+use crate::mechanics::Condition;
 use crate::mechanics::Validation;
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
@@ -65,6 +66,10 @@ pub struct RunOptions {
     pub keep_phi: bool,
     /// When the landmarks are proposed from the image instead of read.
     pub auto_landmarks: AutoLandmarks,
+    /// The ear's condition the package models (`mechanics::Condition`): the registration
+    /// is the same; the package's materials, and the atlas its mechanics are checked
+    /// against, are the atlas's under it.
+    pub condition: Condition,
 }
 
 /// When `run` proposes the landmarks from the image (`pipeline::auto_landmarks`).
@@ -381,12 +386,15 @@ pub fn run_case(
         &mut clock,
     )?;
     export(cx, &placed.atlas, &deformed.nodes, &scored, &mut clock)?;
-    let validation = validate(cx, &placed.atlas, &deformed.nodes, &mut clock)?;
+    // the condition changes materials only: registration and scoring used the atlas as it is
+    let ear = cx.opts.condition.apply(&placed.atlas)?;
+    let validation = validate(cx, &ear, &deformed.nodes, &mut clock)?;
     let metrics = CaseMetrics {
         case: case.id.clone(),
         side: placed.side,
         side_source: placed.side_source.to_string(),
         atlas: placed.atlas.name.clone(),
+        condition: cx.opts.condition,
         image: ingested.record.clone(),
         landmarks: LandmarkMetrics {
             patient: (&placed.patient).into(),
@@ -411,6 +419,7 @@ pub fn run_case(
         side: placed.side,
         side_source: placed.side_source,
         atlas: &placed.atlas,
+        condition: cx.opts.condition,
         fit: &fit,
         landmark_warnings: &placed.warnings,
         landmarks: &placed.patient,
@@ -457,7 +466,8 @@ pub fn run_case(
         false => None,
     };
     let package = PackageInput {
-        atlas: &placed.atlas,
+        atlas: &ear,
+        condition: cx.opts.condition,
         nodes: &deformed.nodes,
         fit: &fit,
         deform: &deformed.record,
@@ -807,7 +817,9 @@ fn validate(
     }
     progress.case_stage(&case.id, "validate");
     let t = Instant::now();
-    let v = validate_registered(atlas, nodes, &config.validate, progress)?;
+    let mut v = validate_registered(atlas, nodes, &config.validate, progress)?;
+    // `atlas` is already the atlas under the run's condition; the record says which
+    v.condition = cx.opts.condition;
     write_json_file(&out.join("mechanics.json"), &v)?;
     progress.log(&format!(
         "{}: mechanics against the atlas: {} ({} of {} gates failed)",

@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::atlas::Part;
 use crate::ear::{Landmarks, Side};
 use crate::image::ImageRecord;
+use crate::mechanics::Condition;
 use crate::meshdev::SurfaceDistances;
 use crate::register::atlas_fit::DeformRecord;
 use crate::register::deform::{DeformStatus, IterationStats};
@@ -31,6 +32,9 @@ pub struct CaseMetrics {
     pub side_source: String,
     /// The atlas's name.
     pub atlas: String,
+    /// The ear's condition the package models (`run --condition`); absent for a normal ear.
+    #[serde(default, skip_serializing_if = "Condition::is_normal")]
+    pub condition: Condition,
     pub image: ImageRecord,
     pub landmarks: LandmarkMetrics,
     /// What the landmark checks found unusual but possible.

@@ -310,8 +310,9 @@ fn check_counts(mesh: &VolumeMesh, want: MeshCounts, file: &str, faults: &mut Fa
     }
 }
 
-/// The atlas the package was registered from, mirrored to its side: `given`, which must be
-/// the one the manifest names (a fault otherwise), or the embedded atlas when it is that one.
+/// The atlas the package was registered from, mirrored to its side and under the manifest's
+/// condition: `given`, which must then be the one the manifest names (a fault otherwise), or
+/// the embedded atlas when it is that one.
 fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Option<Atlas> {
     let atlas = match given {
         Some(a) => a.clone(),
@@ -322,6 +323,8 @@ fn source_atlas(m: &Manifest, given: Option<&Atlas>, faults: &mut Faults) -> Opt
     } else {
         atlas.mirrored()
     };
+    // a package of a pathology holds the source atlas under its condition
+    let atlas = m.condition.apply(&atlas).ok()?;
     let digest = atlas_sha256(&atlas).ok()?;
     if digest == m.atlas.sha256 {
         return Some(atlas);

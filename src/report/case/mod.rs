@@ -31,6 +31,7 @@ use super::slices::{
 use crate::atlas::{Atlas, Part};
 use crate::ear::{Landmarks, Side};
 use crate::image::{LoadedImage, Sampler};
+use crate::mechanics::Condition;
 use crate::mechanics::Validation;
 use crate::mesh::TriMesh;
 use crate::register::atlas_fit::DeformRecord;
@@ -65,6 +66,8 @@ pub struct CaseReportInput<'a> {
     /// Where the side came from ("--side", "landmark file", "DICOM laterality").
     pub side_source: &'a str,
     pub atlas: &'a Atlas,
+    /// The ear's condition the package models (`run --condition`).
+    pub condition: Condition,
     pub fit: &'a RigidFit,
     /// What the landmark checks found unusual but possible (shown with the landmarks).
     pub landmark_warnings: &'a [LandmarkWarning],

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use super::{CaseReportInput, mm};
 use crate::atlas::Part;
 use crate::ear::LandmarkName;
+use crate::mechanics::Condition;
 use crate::register::refine::{RefineStop, Refinement};
 use crate::report::html::Page;
 use crate::report::metrics::{DeformSummary, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics};
@@ -214,7 +215,17 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
             "side",
             format!("{} (from the {})", input.side.as_str(), input.side_source),
         ),
-        ("atlas", input.atlas.name.clone()),
+        (
+            "atlas",
+            match input.condition {
+                Condition::Normal => input.atlas.name.clone(),
+                c => format!(
+                    "{}, materials of {} (run --condition)",
+                    input.atlas.name,
+                    c.name()
+                ),
+            },
+        ),
         ("rigid scale", format!("{:.4}", input.fit.transform.scale)),
         (
             "deformable stage",

@@ -149,6 +149,7 @@ fn html_warned(
         side: Side::Right,
         side_source: "landmark file",
         atlas: &f.atlas,
+        condition: crate::mechanics::Condition::Normal,
         fit: &f.fit,
         landmark_warnings,
         landmarks: &f.atlas.landmark_positions(&f.rigid),
