@@ -1,7 +1,8 @@
 //! `otoatlas simulate` end to end: the trajectory file, the JSON report, a pathology, bad
 //! options.
 //! `validate` (its numbers are exercised by the library tests): the progress it logs when
-//! stderr is not a terminal, and its refusal of a bad option.
+//! stderr is not a terminal, the evidence it lists source by source, and its refusal of a bad
+//! option.
 
 use crate::common::{otoatlas, otoatlas_json};
 
@@ -99,6 +100,22 @@ fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
         .filter(|l| l.trim_end().ends_with(" um") && !l.trim_start().starts_with("0 Pa"))
         .count();
     assert!(frequencies > 10 && pressures > 2, "{stdout}");
+    // the evidence, one line per source, the fitted one marked as such
+    let evidence: Vec<&str> = stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("evidence ("))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .collect();
+    assert_eq!(evidence.len(), 3, "{stdout}");
+    assert!(
+        evidence[0].starts_with("  Goode et al. 1994") && evidence[0].contains("over 7 point(s)"),
+        "{stdout}"
+    );
+    assert!(
+        evidence[2].contains("(fitted: ") && !evidence[0].contains("fitted"),
+        "{stdout}"
+    );
     let tfa_done = format!("TFA: {frequencies} frequencies solved");
     let udsp_done = format!("UDSP: {pressures} static pressures solved");
     let lines: Vec<&str> = stderr.lines().collect();

@@ -170,11 +170,34 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
             g.high
         );
     }
+    if !validation.evidence.is_empty() {
+        let _ = writeln!(
+            text,
+            "evidence (the model against measurements, residual = model - measured):"
+        );
+    }
+    for e in &validation.evidence {
+        let _ = writeln!(
+            text,
+            "  {}: RMS {:.1} {u} over {} point(s), worst {:+.1} {u}; within ±{} {u}: {}{}",
+            e.source,
+            e.rms_residual,
+            e.points.len(),
+            e.worst_residual,
+            e.spread,
+            if e.within_spread { "yes" } else { "no" },
+            e.fitted
+                .map(|why| format!(" (fitted: {why})"))
+                .unwrap_or_default(),
+            u = e.residual_unit,
+        );
+    }
     let _ = writeln!(text, "{}", if v.passed { "PASSED" } else { "FAILED" });
     let json = serde_json::json!({
         "passed": v.passed,
         "condition": validation.condition,
         "verdict": v,
+        "evidence": validation.evidence,
         "mechanics": m,
         "reference": validation.reference,
     });

@@ -8,6 +8,7 @@
 pub mod boundary;
 pub mod condition;
 pub mod error;
+pub mod evidence;
 pub mod simulate;
 pub mod tfa;
 pub mod udsp;
@@ -17,6 +18,7 @@ pub mod verdict;
 pub use boundary::{MechanicalSystem, TiedPoint};
 pub use condition::{Condition, FIXATION_FACTOR};
 pub use error::MechanicsError;
+pub use evidence::{Evidence, EvidencePoint, evidence};
 pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};
 pub use validate::{

@@ -8,6 +8,7 @@ use serde::Serialize;
 use super::boundary::MechanicalSystem;
 use super::condition::Condition;
 use super::error::MechanicsError;
+use super::evidence::{Evidence, evidence};
 use super::tfa::{TfaOptions, TransferFunction, transfer_function};
 use super::udsp::{StaticCurve, UdspOptions, static_pressure_curve};
 use super::verdict::{Verdict, literature_verdict, relative_verdict};
@@ -88,6 +89,10 @@ pub struct Validation {
     pub mechanics: Mechanics,
     pub reference: Option<Mechanics>,
     pub verdict: Verdict,
+    /// An atlas against each measured source, with residuals (`evidence`); empty for a
+    /// package, whose gates compare it with its atlas.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub evidence: Vec<Evidence>,
 }
 
 /// Validates the atlas against the literature bands.
@@ -100,6 +105,7 @@ pub fn validate_atlas(
     let verdict = literature_verdict(&m.transfer_function, &m.udsp);
     Ok(Validation {
         condition: options.condition,
+        evidence: evidence(&m.transfer_function, &m.udsp),
         mechanics: m,
         reference: None,
         verdict,
@@ -140,5 +146,6 @@ pub fn validate_package_against(
         mechanics: m,
         reference: Some(reference.clone()),
         verdict,
+        evidence: Vec::new(),
     })
 }

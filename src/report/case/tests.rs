@@ -431,6 +431,7 @@ fn validation() -> crate::mechanics::Validation {
         mechanics: package,
         reference: Some(atlas),
         verdict,
+        evidence: Vec::new(),
     }
 }
 

@@ -1,0 +1,248 @@
+//! The model against measurements it was not fitted to, source by source: at each measured
+//! point the model's value and the residual, then the RMS and the worst residual, and whether
+//! every point lies within the spread the source (or the nearest published spread) reports.
+//! Where a figure of the model was fitted to a source, the entry says so and is not evidence.
+//! The literature gates (`verdict`) are a wide sanity net; this is the comparison a reader
+//! should judge the model on. Sources and conversions: docs/mechanics.md, "Evidence".
+
+use serde::Serialize;
+
+use super::tfa::TransferFunction;
+use super::udsp::StaticCurve;
+
+/// Goode et al. 1994 (Am J Otol 15:145), temporal-bone stapes displacement at 104 dB SPL as
+/// the Auditory Modeling Toolbox tabulates it (`data_goode1994`), labelled peak-to-peak:
+/// (Hz, velocity over pressure read as peak-to-peak, µm/s/Pa). Read as an amplitude it is
+/// twice that; the comparison uses the geometric mean of the two readings.
+const GOODE_1994: [(f64, f64); 7] = [
+    (400.0, 56.0),
+    (600.0, 96.0),
+    (800.0, 123.0),
+    (1000.0, 106.0),
+    (2000.0, 46.0),
+    (4000.0, 20.0),
+    (6000.0, 13.0),
+];
+/// The inter-subject spread of the magnitude, ±dB: Whittemore et al. 2004 (Hear Res
+/// 187:85; 56 live ears, umbo velocity), the nearest published spread, taken as ±2 SD.
+const MAGNITUDE_SPREAD_DB: f64 = 10.0;
+/// Chien et al. 2009 (14 live ears): stapes velocity leads the pressure by 0.2 cycles at
+/// 0.3 kHz: (Hz, degrees).
+const CHIEN_2009_PHASE: (f64, f64) = (300.0, 72.0);
+/// The spread of that phase, ±degrees: Whittemore et al. 2004's ±15° at low frequencies (umbo
+/// phase of live ears), the nearest published spread.
+const PHASE_SPREAD_DEG: f64 = 15.0;
+
+/// One measured point against the model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EvidencePoint {
+    pub frequency_hz: f64,
+    pub measured: f64,
+    pub model: f64,
+    /// model against measured: dB for magnitudes, degrees for phases.
+    pub residual: f64,
+}
+
+/// One source's comparison.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Evidence {
+    pub source: &'static str,
+    /// What was measured, on what, and how it is compared.
+    pub quantity: &'static str,
+    /// The unit of `measured`, `model` and of the residuals (`dB`, `deg`).
+    pub unit: &'static str,
+    pub residual_unit: &'static str,
+    pub points: Vec<EvidencePoint>,
+    pub rms_residual: f64,
+    /// The residual largest in size, with its sign.
+    pub worst_residual: f64,
+    /// The spread every residual is held to (±), and where it comes from.
+    pub spread: f64,
+    pub spread_source: &'static str,
+    pub within_spread: bool,
+    /// Set when the model was fitted to this source: then this entry is not evidence.
+    pub fitted: Option<&'static str>,
+}
+
+impl Evidence {
+    fn new(
+        source: &'static str,
+        quantity: &'static str,
+        (unit, residual_unit): (&'static str, &'static str),
+        points: Vec<EvidencePoint>,
+        (spread, spread_source): (f64, &'static str),
+    ) -> Evidence {
+        let n = points.len().max(1) as f64;
+        let rms_residual = (points.iter().map(|p| p.residual.powi(2)).sum::<f64>() / n).sqrt();
+        let worst_residual = points
+            .iter()
+            .map(|p| p.residual)
+            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+            .unwrap_or(f64::NAN);
+        let within_spread = !points.is_empty() && points.iter().all(|p| p.residual.abs() <= spread);
+        Evidence {
+            source,
+            quantity,
+            unit,
+            residual_unit,
+            points,
+            rms_residual,
+            worst_residual,
+            spread,
+            spread_source,
+            within_spread,
+            fitted: None,
+        }
+    }
+}
+
+/// The model's transfer function `tf` and static curve `udsp` against every source.
+pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
+    let mut all = Vec::new();
+    let goode: Vec<EvidencePoint> = GOODE_1994
+        .iter()
+        .filter_map(|&(f, peak_to_peak)| {
+            let measured = peak_to_peak * std::f64::consts::SQRT_2;
+            let model = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())?.exp();
+            Some(EvidencePoint {
+                frequency_hz: f,
+                measured,
+                model,
+                residual: 20.0 * (model / measured).log10(),
+            })
+        })
+        .collect();
+    all.push(Evidence::new(
+        "Goode et al. 1994, Am J Otol 15:145",
+        "stapes velocity over ear-canal pressure, temporal bones (the geometric mean of the \
+         peak-to-peak and amplitude readings, which differ by 6 dB)",
+        ("um/s/Pa", "dB"),
+        goode,
+        (
+            MAGNITUDE_SPREAD_DB,
+            "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+        ),
+    ));
+    let (f, measured) = CHIEN_2009_PHASE;
+    let phase: Vec<EvidencePoint> = log_interpolate(tf, f, |p| p.phase_deg)
+        .map(|model| EvidencePoint {
+            frequency_hz: f,
+            measured,
+            model,
+            residual: model - measured,
+        })
+        .into_iter()
+        .collect();
+    all.push(Evidence::new(
+        "Chien et al. 2009, Hear Res 249:54 (PMC2874870)",
+        "phase of stapes velocity over ear-canal pressure, live ears",
+        ("deg", "deg"),
+        phase,
+        (
+            PHASE_SPREAD_DEG,
+            "Whittemore et al. 2004: spread of umbo phase at low frequencies",
+        ),
+    ));
+    if let Some(a) = udsp.asymmetry() {
+        let mut asymmetry = Evidence::new(
+            "the source study's atlas (1.76 ± 0.31)",
+            "umbo displacement asymmetry |u(-4 kPa)|/|u(+4 kPa)| under static pressure",
+            ("ratio", "ratio"),
+            vec![EvidencePoint {
+                frequency_hz: 0.0,
+                measured: 1.76,
+                model: a,
+                residual: a - 1.76,
+            }],
+            (0.31, "the source study's ± 1 SD"),
+        );
+        asymmetry.fitted = Some(
+            "the eardrum's radial bow was calibrated to this figure (docs/mechanics.md): \
+             not evidence",
+        );
+        all.push(asymmetry);
+    }
+    all
+}
+
+/// `value` of the transfer function at `f` Hz, interpolated linearly in log frequency
+/// between the computed points around it; `None` outside them.
+fn log_interpolate(
+    tf: &TransferFunction,
+    f: f64,
+    value: impl Fn(&super::tfa::TfPoint) -> f64,
+) -> Option<f64> {
+    let points = &tf.points;
+    let i = points.windows(2).position(|w| {
+        w[0].frequency_hz <= f && f <= w[1].frequency_hz && w[1].frequency_hz > w[0].frequency_hz
+    })?;
+    let (a, b) = (&points[i], &points[i + 1]);
+    let t = (f / a.frequency_hz).ln() / (b.frequency_hz / a.frequency_hz).ln();
+    Some(value(a) + t * (value(b) - value(a)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mechanics::tfa::{Drive, TfPoint};
+
+    /// A transfer function that is Goode's geometric-mean curve times `gain`, with a phase of
+    /// 72° + `phase` at every frequency.
+    fn goode_like(gain: f64, phase: f64) -> TransferFunction {
+        let mut points: Vec<TfPoint> = GOODE_1994
+            .iter()
+            .map(|&(f, v)| TfPoint {
+                frequency_hz: f,
+                magnitude_um_s_per_pa: v * std::f64::consts::SQRT_2 * gain,
+                phase_deg: 72.0 + phase,
+                umbo_um_s_per_pa: 0.0,
+            })
+            .collect();
+        points.insert(
+            0,
+            TfPoint {
+                frequency_hz: 250.0,
+                magnitude_um_s_per_pa: 50.0,
+                phase_deg: 72.0 + phase,
+                umbo_um_s_per_pa: 0.0,
+            },
+        );
+        TransferFunction {
+            drive: Drive::Eardrum,
+            drive_pa: 1.0,
+            points,
+        }
+    }
+
+    #[test]
+    fn a_model_on_the_measurements_has_no_residual_and_one_off_by_a_factor_has_its_decibels() {
+        let exact = evidence(&goode_like(1.0, 0.0), &StaticCurve::default());
+        assert_eq!(exact.len(), 2, "no static curve, no asymmetry entry");
+        let goode = &exact[0];
+        assert_eq!(goode.points.len(), 7);
+        assert!(
+            goode.rms_residual < 1e-9 && goode.within_spread,
+            "{goode:?}"
+        );
+        assert!(exact[1].rms_residual < 1e-9, "{:?}", exact[1]);
+
+        // 4x is +12.04 dB at every point: outside the ±10 dB spread; 20° of phase is outside
+        // ±15°
+        let off = evidence(&goode_like(4.0, -20.0), &StaticCurve::default());
+        let want = 20.0 * 4f64.log10();
+        assert!((off[0].rms_residual - want).abs() < 1e-9);
+        assert!((off[0].worst_residual - want).abs() < 1e-9);
+        assert!(!off[0].within_spread);
+        assert!((off[1].worst_residual + 20.0).abs() < 1e-9 && !off[1].within_spread);
+    }
+
+    #[test]
+    fn interpolation_is_linear_in_log_frequency_and_refuses_outside_the_points() {
+        let tf = goode_like(1.0, 0.0);
+        // half-way in log frequency between 400 and 1600 is 800
+        let mid = log_interpolate(&tf, 800.0, |p| p.frequency_hz.ln()).unwrap();
+        assert!((mid - 800f64.ln()).abs() < 1e-12);
+        assert!(log_interpolate(&tf, 100.0, |p| p.phase_deg).is_none());
+        assert!(log_interpolate(&tf, 7000.0, |p| p.phase_deg).is_none());
+    }
+}
