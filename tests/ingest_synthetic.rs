@@ -437,6 +437,20 @@ fn a_frame_count_beyond_the_file_is_refused_before_anything_is_sized_by_it() {
     assert_bad_input(dir.path(), "NumberOfFrames (0028,0008) is 1000000000");
 }
 
+/// `otoatlas inspect DIR` within a 1 GiB address space (`prlimit`): asserts exit code 2 and
+/// returns stderr.
+fn inspect_refused_within_1_gib(dir: &Path) -> String {
+    let out = std::process::Command::new("prlimit")
+        .arg(format!("--as={}", 1u64 << 30))
+        .arg(env!("CARGO_BIN_EXE_otoatlas"))
+        .args(["inspect", dir.to_str().unwrap()])
+        .output()
+        .expect("prlimit (util-linux)");
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    stderr
+}
+
 /// Three slices whose transfer syntax says explicit VR big endian over a little-endian body:
 /// every element length reads as gigabytes. The `dicom` crate reserved about 4 GB per file
 /// (7.5 GB for the three, scanned in parallel) before failing; now the lengths are checked
@@ -454,14 +468,7 @@ fn a_transfer_syntax_lying_about_byte_order_is_refused_before_any_allocation() {
         bytes[at..at + little.len()].copy_from_slice(b"1.2.840.10008.1.2.2\0");
         fs::write(path, bytes).unwrap();
     }
-    let out = std::process::Command::new("prlimit")
-        .arg(format!("--as={}", 1u64 << 30))
-        .arg(env!("CARGO_BIN_EXE_otoatlas"))
-        .args(["inspect", dir.path().to_str().unwrap()])
-        .output()
-        .expect("prlimit (util-linux)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let stderr = inspect_refused_within_1_gib(dir.path());
     assert!(
         stderr.contains("element length") && stderr.contains("is its transfer syntax right?"),
         "{stderr}"
@@ -568,14 +575,7 @@ fn a_length_lying_inside_a_deflated_data_set_is_refused_before_any_allocation() 
     let mut extra = private_ob_header(3 << 30);
     extra.extend_from_slice(&[0; 16]);
     append_to_deflated(&paths[1], &extra);
-    let out = std::process::Command::new("prlimit")
-        .arg(format!("--as={}", 1u64 << 30))
-        .arg(env!("CARGO_BIN_EXE_otoatlas"))
-        .args(["inspect", dir.path().to_str().unwrap()])
-        .output()
-        .expect("prlimit (util-linux)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let stderr = inspect_refused_within_1_gib(dir.path());
     assert!(
         stderr.contains("element length is 3221225472 bytes"),
         "{stderr}"
