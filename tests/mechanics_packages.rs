@@ -123,7 +123,7 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
             package_commands(&out.join("package"), &manifest);
         }
         let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-        assert!(html.contains("Mechanics of the package against the atlas"));
+        assert!(html.contains("Mechanics: consistency with the atlas"));
         assert!(html.contains("Goode et al. 1994 band"));
         assert!(out.join("mechanics.json").is_file());
         for f in [250.0, 500.0] {
@@ -154,7 +154,10 @@ fn package_commands(package: &std::path::Path, manifest: &serde_json::Value) {
     let p = package.to_string_lossy();
     let (code, json) = common::otoatlas_json(&["--quiet", "validate", &p]);
     assert_eq!(code, 0, "{json}");
-    assert_eq!(json["verdict"]["kind"], "relative", "{json}");
+    assert_eq!(
+        json["verdict"]["kind"], "consistency with the atlas",
+        "{json}"
+    );
     assert!(json["reference"]["transfer_function"].is_object(), "{json}");
     let stored = manifest["mechanics"]["transfer_function"]
         .as_array()

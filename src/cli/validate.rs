@@ -69,7 +69,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
         .reference
         .as_deref()
         .filter(|r| r.as_os_str() != "default");
-    // the atlas to check, and the one it came from for the relative gates
+    // the atlas to check, and the one it came from for the consistency gates
     let (atlas, reference) = match &args.package {
         Some(dir) => {
             let package = open_package(dir)?;
@@ -157,7 +157,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
         m.tfa_seconds, m.udsp_seconds
     );
     let v = &validation.verdict;
-    let _ = writeln!(text, "verdict ({} gates):", v.kind);
+    let _ = writeln!(text, "verdict, {} ({} gates):", v.kind, v.gates.len());
     for g in &v.gates {
         let _ = writeln!(
             text,

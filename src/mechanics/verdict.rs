@@ -9,7 +9,9 @@
 //! asymmetry |u(−4 kPa)|/|u(+4 kPa)| in [1.45, 2.07] (the study's 1.76 ± 0.31) and a
 //! monotonic, sign-preserving response.
 //!
-//! Relative gates (a package against the atlas it came from): |ΔdB| ≤ 3 at every
+//! Consistency with the atlas (a package against the atlas it came from; these show the
+//! registration kept the atlas's behaviour, not that the model is right, which is the
+//! evidence's subject, `evidence`): |ΔdB| ≤ 3 at every
 //! frequency, peak frequency ratio in [0.8, 1.25], |Δphase| ≤ 45° up to 4 kHz, umbo
 //! displacement within ±25 % at ±1, ±2, ±4 kPa, asymmetry in band and on the same side.
 
@@ -43,6 +45,11 @@ pub const RELATIVE_PEAK: (f64, f64) = (0.8, 1.25);
 pub const RELATIVE_PHASE_DEG: f64 = 45.0;
 pub const PHASE_UP_TO_HZ: f64 = 4000.0;
 pub const RELATIVE_UMBO: (f64, f64) = (0.75, 1.25);
+
+/// The kind of an atlas's verdict: bands from the literature, a sanity net.
+pub const LITERATURE: &str = "literature bands";
+/// The kind of a package's verdict: against the atlas it was registered from.
+pub const CONSISTENCY: &str = "consistency with the atlas";
 
 /// One check: what was measured, the band it must lie in, and whether it does.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -141,7 +148,7 @@ pub fn literature_verdict(tf: &TransferFunction, udsp: &StaticCurve) -> Verdict 
         (1.0, 1.0),
         "",
     ));
-    Verdict::new("literature", gates)
+    Verdict::new(LITERATURE, gates)
 }
 
 /// A package against its atlas (`reference`). Without a reference static-pressure curve
@@ -184,7 +191,7 @@ pub fn relative_verdict(
     ));
     if reference_udsp.points.is_empty() {
         // the static-pressure curve was not asked for: no UDSP gates
-        return Verdict::new("relative", gates);
+        return Verdict::new(CONSISTENCY, gates);
     }
     for p in GATE_PRESSURES_PA {
         let r = match (udsp.at(p), reference_udsp.at(p)) {
@@ -215,7 +222,7 @@ pub fn relative_verdict(
         "",
     ));
     gates.push(loaded_to_the_end(udsp));
-    Verdict::new("relative", gates)
+    Verdict::new(CONSISTENCY, gates)
 }
 
 /// Whether every static-pressure increment reached equilibrium (`StaticCurve::failure` says

@@ -7,7 +7,7 @@ use super::super::mechanics_plots::validation_plots;
 use crate::mechanics::Validation;
 
 pub(super) fn mechanics_section(page: &mut Page, v: Option<&Validation>) {
-    page.heading("Mechanics of the package against the atlas");
+    page.heading("Mechanics: consistency with the atlas");
     let Some(v) = v else {
         page.paragraph(
             "Not validated (`[validate] enabled = false` in the configuration).",
@@ -15,6 +15,19 @@ pub(super) fn mechanics_section(page: &mut Page, v: Option<&Validation>) {
         );
         return;
     };
+    let condition = match v.condition {
+        crate::mechanics::Condition::Normal => String::new(),
+        c => format!(", both under the condition {}", c.name()),
+    };
+    page.paragraph(
+        &format!(
+            "These gates compare the package with the atlas it was registered from{condition}: \
+             they show that the registration kept the atlas's behaviour, not that the model is \
+             right. The atlas's evidence against measurements is in `otoatlas validate` \
+             (docs/mechanics.md, \"Evidence\")."
+        ),
+        Some("note"),
+    );
     let failed = v.verdict.failures().count();
     if v.verdict.passed {
         page.paragraph(
