@@ -34,6 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             resume: false,
             atlas: None,
             keep_phi: false,
+            condition: otoatlas::mechanics::Condition::Normal,
             child: None,
         };
         let t = std::time::Instant::now();

@@ -213,7 +213,14 @@ fn the_emitted_slurm_script_is_a_valid_job_array() {
     let script = dir.path().join("it's a cohort.sbatch");
     let out = dir.path().join("it's out");
     let o = run(otoatlas()
-        .args(["batch", "--shards", "2", "--emit-sbatch"])
+        .args([
+            "batch",
+            "--shards",
+            "2",
+            "--condition",
+            "is-disarticulation",
+            "--emit-sbatch",
+        ])
         .arg(&script)
         .arg("--out")
         .arg(&out)
@@ -247,6 +254,8 @@ fn the_emitted_slurm_script_is_a_valid_job_array() {
     let at = words.iter().position(|w| w == "--out").unwrap();
     assert_eq!(words[at + 1], out_abs.to_string_lossy());
     assert!(words.contains(&"--resume".to_string()));
+    let at = words.iter().position(|w| w == "--condition").unwrap();
+    assert_eq!(words[at + 1], "is-disarticulation");
 }
 
 /// SHA-256-free comparison: every file of every package, by relative path.
@@ -408,22 +417,24 @@ fn ran_resumed_failed(o: &Output) -> (usize, usize, usize) {
 }
 
 #[test]
-#[ignore = "heavy: four batch runs of the sample cases, 18 s in debug; scripts/test.sh runs it"]
+#[ignore = "heavy: six batch runs of the sample cases, 26 s in debug; scripts/test.sh runs it"]
 fn resume_reruns_exactly_the_cases_that_changed() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = sample_cohort(dir.path());
     let out = dir.path().join("out");
     let config = crate::common::config_without_validation(dir.path());
-    let batch = |config: &Path| {
+    let batch_with = |config: &Path, extra: &[&str]| {
         let o = run(otoatlas()
             .args(["batch", "--jobs", "2", "--resume", "--out"])
             .arg(&out)
             .arg("--config")
             .arg(config)
+            .args(extra)
             .arg(&cohort));
         assert!(o.status.success(), "{o:?}");
         o
     };
+    let batch = |config: &Path| batch_with(config, &[]);
     assert_eq!(ran_resumed_failed(&batch(&config)), (3, 0, 0));
     assert_eq!(ran_resumed_failed(&batch(&config)), (0, 3, 0));
 
@@ -458,6 +469,16 @@ fn resume_reruns_exactly_the_cases_that_changed() {
     let other = dir.path().join("other.toml");
     std::fs::write(&other, changed).unwrap();
     assert_eq!(ran_resumed_failed(&batch(&other)), (3, 0, 0));
+
+    // a condition -> every case again, each package that ear's; then nothing left to do
+    let fixed = ["--condition", "stapes-fixation"];
+    assert_eq!(ran_resumed_failed(&batch_with(&other, &fixed)), (3, 0, 0));
+    let manifest: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("cases/case-002/package/manifest.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(manifest["condition"], "stapes-fixation");
+    assert_eq!(ran_resumed_failed(&batch_with(&other, &fixed)), (0, 3, 0));
 }
 
 #[test]

@@ -10,6 +10,7 @@ use super::Report;
 use super::out_arg::check_out_dir;
 use crate::Error;
 use crate::config::Config;
+use crate::mechanics::Condition;
 use crate::pipeline::batch::{BatchOptions, Outcome, run_batch};
 use crate::pipeline::case_process::{CaseProcess, serve};
 use crate::pipeline::cohort::{Shard, read_cohort};
@@ -69,6 +70,10 @@ pub struct BatchArgs {
     /// 3 times its volume; default: no limit of its own.
     #[arg(long, value_name = "MIB", value_parser = clap::value_parser!(u64).range(1..))]
     pub case_memory_limit: Option<u64>,
+    /// The ear's condition every package models (`run --condition`): the same registration,
+    /// the materials of a pathology.
+    #[arg(long, value_enum, default_value = "normal")]
+    pub condition: Condition,
     /// Print machine-readable JSON (cohort.json) on stdout.
     #[arg(long)]
     pub json: bool,
@@ -143,6 +148,7 @@ pub fn run(
             atlas: atlas_abs.as_deref(),
             keep_phi: args.keep_phi,
             case_memory_limit_mib: args.case_memory_limit,
+            condition: args.condition,
         });
         crate::io_util::write_atomic(script_path, script.as_bytes())?;
         return Ok(Report {
@@ -177,6 +183,7 @@ pub fn run(
         resume: args.resume,
         atlas: args.atlas.clone(),
         keep_phi: args.keep_phi,
+        condition: args.condition,
         child: Some(CaseProcess {
             program,
             args: vec![CASE_COMMAND.into()],

@@ -36,6 +36,8 @@ pub struct BatchOptions {
     pub atlas: Option<PathBuf>,
     /// Keep the DICOM patient fields in the packages (`run --keep-phi`).
     pub keep_phi: bool,
+    /// The ear's condition every package models (`run --condition`).
+    pub condition: Condition,
     /// Run each case in a child process started so; none: in this process.
     pub child: Option<CaseProcess>,
 }
@@ -128,7 +130,7 @@ fn run_one(
         keep_phi: opts.keep_phi,
         // a case without a landmark file has them proposed from its image
         auto_landmarks: AutoLandmarks::WhenMissing,
-        condition: Condition::Normal,
+        condition: opts.condition,
     };
     let status = match &opts.child {
         Some(process) => run_in_child(process, case, &run_opts, config, child_threads, progress),
@@ -152,7 +154,8 @@ pub fn read_status(out: &Path, id: &str) -> Option<CaseStatus> {
 
 /// Whether the case's outputs in `out` are complete and current: its package verifies (every
 /// file hashed, meshes and scene consistent) and its manifest names these inputs, this
-/// configuration and this atlas (by SHA-256), and holds no patient identity unless asked to.
+/// configuration and this atlas under this condition (by SHA-256), and holds no patient
+/// identity unless asked to.
 /// A package is written last and atomically, so one that verifies means the run finished.
 fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) -> bool {
     let Ok(report) = verify_package(&out.join(PACKAGE_DIR)) else {
@@ -167,6 +170,7 @@ fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) ->
     let same_atlas = || {
         crate::atlas::load_atlas(opts.atlas.as_deref(), Some(manifest.side))
             .ok()
+            .and_then(|atlas| opts.condition.apply(&atlas).ok())
             .and_then(|atlas| atlas_sha256(&atlas).ok())
             .is_some_and(|digest| digest == manifest.atlas.sha256)
     };

@@ -107,6 +107,7 @@ pub struct Job {
     out: OsString,
     atlas: Option<OsString>,
     keep_phi: bool,
+    condition: Condition,
     config: Config,
     /// Threads of the child's pool.
     threads: usize,
@@ -147,6 +148,7 @@ pub fn run_in_child(
         out: run_opts.out.clone().into_os_string(),
         atlas: run_opts.atlas.clone().map(PathBuf::into_os_string),
         keep_phi: run_opts.keep_phi,
+        condition: run_opts.condition,
         config: config.clone(),
         threads,
         memory_limit_mib: process.memory_limit_mib,
@@ -306,7 +308,7 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
                     side: None,
                     keep_phi: job.keep_phi,
                     auto_landmarks: AutoLandmarks::WhenMissing,
-                    condition: Condition::Normal,
+                    condition: job.condition,
                 };
                 pool.install(|| run_here(&case, &run_opts, &job.config, &reporter))
             }

@@ -4,6 +4,8 @@
 
 use std::path::Path;
 
+use crate::mechanics::Condition;
+
 /// What the script runs.
 pub struct SbatchSpec<'a> {
     /// The otoatlas executable the tasks run (absolute).
@@ -22,6 +24,8 @@ pub struct SbatchSpec<'a> {
     pub keep_phi: bool,
     /// Pass `--case-memory-limit` to every task \[MiB\].
     pub case_memory_limit_mib: Option<u64>,
+    /// Pass `--condition` to every task (unless normal).
+    pub condition: Condition,
 }
 
 /// Quotes `text` for a POSIX shell.
@@ -53,6 +57,9 @@ pub fn sbatch_script(spec: &SbatchSpec) -> String {
     }
     if let Some(mib) = spec.case_memory_limit_mib {
         command.push_str(&format!(" --case-memory-limit {mib}"));
+    }
+    if !spec.condition.is_normal() {
+        command.push_str(&format!(" --condition {}", spec.condition.name()));
     }
     let merge = format!("{} cohort-report {}", quoted(spec.exe), quoted(spec.out));
     let logs = spec.out.join("slurm");
