@@ -249,6 +249,26 @@ fn membrane_sphere() -> (TriMesh, MembraneMaterial, FemModel, FixedDofs) {
     (sphere, mat, model, fixed)
 }
 
+/// The small-strain (linear) displacement under `load`: one solve K u = f with K and f at the
+/// rest shape (the bending hinges' tangent is exact there), as [x, y, z] per node.
+fn small_strain_displacement(model: &FemModel, fixed: &FixedDofs, load: &PressureLoad) -> Vec<f64> {
+    let pattern = SparsePattern::new(model);
+    let mut state = CorotationalState::new(model);
+    state.update(model, model.rest_positions()).unwrap();
+    let mut values = pattern.zero_values();
+    pattern
+        .assemble(model, &state, 1.0, None, fixed, &mut values)
+        .unwrap();
+    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
+    chol.factorise(pattern.matrix(&values)).unwrap();
+    let mut f = vec![Vector3::zeros(); model.rest_positions().len()];
+    load.add_forces(model.rest_positions(), &mut f);
+    let mut u: Vec<f64> = f.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+    fixed.zero_fixed(&mut u);
+    chol.solve_in_place(&mut u).unwrap();
+    u
+}
+
 #[test]
 fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() {
     let radius = SPHERE_RADIUS;
@@ -280,20 +300,7 @@ fn pressurised_spherical_membrane_obeys_laplace_and_the_small_strain_solution() 
     assert!((mean - exact).abs() < 0.01 * exact, "{mean} vs {exact}");
     assert!(spread < 0.4 * exact, "{spread}");
     // small-strain solution: one linear solve K u = f(rest)
-    let pattern = SparsePattern::new(&model);
-    let mut state = CorotationalState::new(&model);
-    state.update(&model, model.rest_positions()).unwrap();
-    let mut values = pattern.zero_values();
-    pattern
-        .assemble(&model, &state, 1.0, None, &fixed, &mut values)
-        .unwrap();
-    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
-    chol.factorise(pattern.matrix(&values)).unwrap();
-    let mut f = vec![Vector3::zeros(); x.len()];
-    load.add_forces(model.rest_positions(), &mut f);
-    let mut u: Vec<f64> = f.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-    fixed.zero_fixed(&mut u);
-    chol.solve_in_place(&mut u).unwrap();
+    let u = small_strain_displacement(&model, &fixed, &load);
     let worst = x
         .iter()
         .zip(model.rest_positions())
@@ -552,25 +559,12 @@ fn a_clamped_plate_converges_to_kirchhoff_from_above() {
         let (nodes, triangles, clamped) = clamped_disc(a, n);
         let model = membrane_model(&nodes, &triangles, mat);
         let fixed = FixedDofs::from_nodes(nodes.len(), &clamped).unwrap();
-        // the small-deflection (linear) solution: K u = f at the flat rest shape
-        let pattern = SparsePattern::new(&model);
-        let mut state = CorotationalState::new(&model);
-        state.update(&model, model.rest_positions()).unwrap();
-        let mut values = pattern.zero_values();
-        pattern
-            .assemble(&model, &state, 1.0, None, &fixed, &mut values)
-            .unwrap();
-        let mut chol = SparseCholesky::analyse(&pattern).unwrap();
-        chol.factorise(pattern.matrix(&values)).unwrap();
+        // the small-deflection (linear) solution at the flat rest shape
         let load = PressureLoad {
             triangles: &triangles,
             pressure: p,
         };
-        let mut f = vec![Vector3::zeros(); nodes.len()];
-        load.add_forces(model.rest_positions(), &mut f);
-        let mut u: Vec<f64> = f.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
-        fixed.zero_fixed(&mut u);
-        chol.solve_in_place(&mut u).unwrap();
+        let u = small_strain_displacement(&model, &fixed, &load);
         let centre = u[2];
         let error = centre / kirchhoff - 1.0;
         println!(
