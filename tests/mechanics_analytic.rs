@@ -139,8 +139,8 @@ fn single_mass_spring_damper_harmonic_response_is_exact() {
     }
 }
 
-/// Lowest eigenvalue of K φ = λ M φ by inverse iteration (K with fixed DOFs projected).
-fn lowest_eigenvalue(model: &FemModel, fixed: &FixedDofs) -> f64 {
+/// The Cholesky factor of the stiffness K at the rest shape, fixed DOFs projected out.
+fn rest_stiffness_factor(model: &FemModel, fixed: &FixedDofs) -> SparseCholesky {
     let pattern = SparsePattern::new(model);
     let mut state = CorotationalState::new(model);
     state.update(model, model.rest_positions()).unwrap();
@@ -150,6 +150,12 @@ fn lowest_eigenvalue(model: &FemModel, fixed: &FixedDofs) -> f64 {
         .unwrap();
     let mut chol = SparseCholesky::analyse(&pattern).unwrap();
     chol.factorise(pattern.matrix(&values)).unwrap();
+    chol
+}
+
+/// Lowest eigenvalue of K φ = λ M φ by inverse iteration (K with fixed DOFs projected).
+fn lowest_eigenvalue(model: &FemModel, fixed: &FixedDofs) -> f64 {
+    let mut chol = rest_stiffness_factor(model, fixed);
     let mass: Vec<f64> = (0..model.dof_count())
         .map(|d| model.lumped_masses()[d / 3])
         .collect();
@@ -252,15 +258,7 @@ fn membrane_sphere() -> (TriMesh, MembraneMaterial, FemModel, FixedDofs) {
 /// The small-strain (linear) displacement under `load`: one solve K u = f with K and f at the
 /// rest shape (the bending hinges' tangent is exact there), as [x, y, z] per node.
 fn small_strain_displacement(model: &FemModel, fixed: &FixedDofs, load: &PressureLoad) -> Vec<f64> {
-    let pattern = SparsePattern::new(model);
-    let mut state = CorotationalState::new(model);
-    state.update(model, model.rest_positions()).unwrap();
-    let mut values = pattern.zero_values();
-    pattern
-        .assemble(model, &state, 1.0, None, fixed, &mut values)
-        .unwrap();
-    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
-    chol.factorise(pattern.matrix(&values)).unwrap();
+    let mut chol = rest_stiffness_factor(model, fixed);
     let mut f = vec![Vector3::zeros(); model.rest_positions().len()];
     load.add_forces(model.rest_positions(), &mut f);
     let mut u: Vec<f64> = f.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
