@@ -4,7 +4,6 @@
 //! `atlas_to_patient` transform, a registration summary, the mesh counts, and the SHA-256 of
 //! every other file. Nothing in it depends on the time, the machine or a path.
 
-use crate::mechanics::Condition;
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
@@ -16,7 +15,7 @@ use crate::config::Config;
 use crate::ear::Side;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::sha256_hex;
-use crate::mechanics::Validation;
+use crate::mechanics::{Condition, Validation};
 use crate::mesh::io::vtu::{VtuEncoding, vtu_string};
 use crate::register::rigid::SimilarityTransform;
 

@@ -130,12 +130,13 @@ pub fn deform_atlas(
                         .map(|(p, q)| p + (q - p) * t)
                         .collect()
                 };
-                let t = [0.75, 0.5, 0.25, 0.0]
+                let (t, shortened) = [0.75, 0.5, 0.25]
                     .into_iter()
-                    .find(|&t| {
-                        flattest_below_floors(&atlas.mesh.tets.tets, placed, &part_way(t)).is_none()
+                    .map(|t| (t, part_way(t)))
+                    .find(|(_, x)| {
+                        flattest_below_floors(&atlas.mesh.tets.tets, placed, x).is_none()
                     })
-                    .unwrap_or(0.0);
+                    .unwrap_or_else(|| (0.0, placed.to_vec()));
                 record.shortened = Some(format!(
                     "carried {:.0} % of the way: all the way, tetrahedron {} would keep shape \
                      quality {:.3} and {:.3} of its atlas volume",
@@ -144,7 +145,7 @@ pub fn deform_atlas(
                     flat.shape_quality,
                     flat.volume_ratio
                 ));
-                (part_way(t), Some(record))
+                (shortened, Some(record))
             }
         }
     } else {

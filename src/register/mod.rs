@@ -14,6 +14,8 @@ pub mod rigid;
 pub mod stapes_turn;
 
 pub use crate::ear::Side;
+pub use landmarks::{LandmarkName, Landmarks};
+pub use rigid::{RigidFit, SimilarityTransform, fit_similarity};
 
 /// The settings of the deformable stage's levels (`[articulate]`, `[deform]`, `[refine]`).
 #[derive(Debug, Clone, Copy)]
@@ -22,5 +24,3 @@ pub struct DeformSettings<'a> {
     pub deform: &'a deform::DeformConfig,
     pub refine: &'a refine::RefineConfig,
 }
-pub use landmarks::{LandmarkName, Landmarks};
-pub use rigid::{RigidFit, SimilarityTransform, fit_similarity};

@@ -31,8 +31,7 @@ use super::slices::{
 use crate::atlas::{Atlas, Part};
 use crate::ear::{Landmarks, Side};
 use crate::image::{LoadedImage, Sampler};
-use crate::mechanics::Condition;
-use crate::mechanics::Validation;
+use crate::mechanics::{Condition, Validation};
 use crate::mesh::TriMesh;
 use crate::register::atlas_fit::DeformRecord;
 use crate::register::landmarks::LandmarkWarning;
