@@ -113,6 +113,14 @@ pub(crate) fn check(s: &Scored) {
                 s.case,
                 100.0 * (1.0 - fin / rigid)
             );
+        } else if name == "chain" {
+            // the three ossicles as one solid (docs/metrics.md), within the ossicles' bounds
+            assert!(
+                *fin <= 0.5 * s.spacing && *hd95 <= 2.0 * s.spacing,
+                "{} chain: MASD {fin}, HD95 {hd95} (voxel {})",
+                s.case,
+                s.spacing
+            );
         } else {
             // the eardrum: a sheet thinner than a voxel, within a voxel
             assert!(*fin <= s.spacing, "{} {name}: MASD {fin}", s.case);

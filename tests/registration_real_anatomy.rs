@@ -7,7 +7,8 @@
 //!   and exported as one closed surface per ossicle (`otoatlas atlas import` + `atlas export`);
 //!   its landmarks are the fixture's (docs/anatomy.md, "Real chains"). The fixture's mapping
 //!   gives the two soft-tissue stubs of its incus label (tendon and ligament, not bone) to
-//!   connective tissue, so the truth is the bones alone.
+//!   connective tissue, so the truth is the bones alone. Its chain is scored as one solid
+//!   against the three ossicles united, and each ossicle on its own as well.
 //! - The CT-derived chain `455` (a right ear, one fused surface inflated by the CT's partial
 //!   volume, rendered as it is); its landmarks were picked once by the method of
 //!   docs/anatomy.md ("Real chains") and are kept here. Its fused truth is compared with the
@@ -16,7 +17,8 @@
 //! The cases use seeds 101-104 of each chain, which no setting of the registration was chosen
 //! on (the development cases were seeds 1-4). The bounds below are regression bounds at the
 //! figures reached (README, "Accuracy on real chains"); the targets (chain MASD within half a
-//! voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not met yet, and
+//! voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not all met yet (the CT
+//! chain's HD95), and
 //! each case prints its figures against them. Every package must pass `otoatlas verify`:
 //! before the registration's element floors, springs sheared a tendon or joint element of
 //! every CT-chain case flat (shape quality 0.007-0.018), which `verify` refuses.
@@ -35,11 +37,13 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
 
 /// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm] (per
 /// chain: the CT chain's tail is its footplate rim against the otic capsule and thin processes
-/// its partial volume lost, docs/registration.md), and the least improvement of the chain
-/// MASD over the landmark fit (the target).
+/// its partial volume lost, docs/registration.md), the worst HD95 of SOFA's ossicles scored
+/// one by one [mm] (their labels' ends inside the joints, docs/metrics.md), and the least
+/// improvement of the chain MASD over the landmark fit (the target).
 const MASD_MAX_VOXELS: f64 = 0.7;
 pub(crate) const MASD_MAX_MM: f64 = 0.15;
-const HD95_MAX_MM_SOFA: f64 = 0.6;
+const HD95_MAX_MM_SOFA: f64 = 0.3;
+const HD95_MAX_MM_OSSICLE: f64 = 0.6;
 pub(crate) const HD95_MAX_MM_CT: f64 = 0.9;
 const MIN_IMPROVEMENT: f64 = 0.5;
 
@@ -106,27 +110,20 @@ pub(crate) fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
     chain
 }
 
-/// The chain's MASD and HD95 from a run's metrics: the fused reference's, or the ossicles'
-/// pooled by area (MASD) and the worst of them (HD95).
+/// The chain's MASD and HD95 from a run's metrics: its score as one solid, against the fused
+/// reference or the outer surface of the separate ossicles (docs/metrics.md).
 pub(crate) fn chain_scores(m: &Value, which: &str) -> (f64, f64) {
-    let scores = &m["scores"];
-    if let Some(c) = scores.get("chain") {
-        return (
-            c[which]["masd"].as_f64().unwrap(),
-            c[which]["hd95"].as_f64().unwrap(),
-        );
-    }
-    let (mut sum, mut area, mut hd95) = (0.0, 0.0, 0.0f64);
-    for o in ["malleus", "incus", "stapes"] {
-        let r = &scores[o][which];
-        for d in ["test_to_ref", "ref_to_test"] {
-            let a = r[d]["area_mm2"].as_f64().unwrap();
-            sum += a * r[d]["mean"].as_f64().unwrap();
-            area += a;
-        }
-        hd95 = hd95.max(r["hd95"].as_f64().unwrap());
-    }
-    (sum / area, hd95)
+    let c = &m["scores"]["chain"][which];
+    (c["masd"].as_f64().unwrap(), c["hd95"].as_f64().unwrap())
+}
+
+/// The worst HD95 of the separate ossicles' own scores, where the reference has them.
+fn worst_ossicle_hd95(m: &Value) -> Option<f64> {
+    ["malleus", "incus", "stapes"]
+        .iter()
+        .map(|o| m["scores"][o]["registered"]["hd95"].as_f64())
+        .collect::<Option<Vec<f64>>>()
+        .map(|v| v.into_iter().fold(0.0, f64::max))
 }
 
 #[test]
@@ -181,6 +178,14 @@ fn phantoms_of_two_real_chains_pass_the_landmark_checks_and_register() {
             }
             if hd95 > *hd95_max {
                 failures.push(format!("{name} seed {seed}: chain HD95 {hd95:.3} mm"));
+            }
+            if let Some(worst) = worst_ossicle_hd95(&m) {
+                eprintln!("{name:<6} seed {seed}: the worst ossicle's own HD95 {worst:.3} mm");
+                if worst > HD95_MAX_MM_OSSICLE {
+                    failures.push(format!(
+                        "{name} seed {seed}: an ossicle's HD95 {worst:.3} mm"
+                    ));
+                }
             }
             if improvement < MIN_IMPROVEMENT {
                 failures.push(format!(

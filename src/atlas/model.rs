@@ -276,7 +276,7 @@ impl Atlas {
 
     /// The surface of a part with the nodes at `nodes`, as a compact triangle mesh.
     pub fn part_surface(&self, part: Part, nodes: &[Point3<f64>]) -> TriMesh {
-        compact(&self.part_triangles(part), nodes)
+        TriMesh::compacted(&self.part_triangles(part), nodes)
     }
 
     /// The outer surface of the ossicular chain as one solid, with the nodes at `nodes`: the
@@ -294,14 +294,14 @@ impl Atlas {
             .map(|r| r.label)
             .collect();
         if labels.is_empty() {
-            return compact(&[], nodes);
+            return TriMesh::compacted(&[], nodes);
         }
         let triangles = self
             .mesh
             .tets
             .boundary(BoundaryOf::Regions(&labels))
             .node_triangles();
-        compact(&triangles, nodes)
+        TriMesh::compacted(&triangles, nodes)
     }
 
     /// The flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm) of each membrane triangle, in
@@ -449,20 +449,4 @@ fn membrane_material(
         bending_thickness: r.bending_thickness_mm,
         density: m.density_kg_m3 * KG_PER_M3_TO_G_PER_MM3,
     })
-}
-
-/// Triangles over a large node array as a compact mesh (vertices in order of first use).
-pub fn compact(triangles: &[[u32; 3]], nodes: &[Point3<f64>]) -> TriMesh {
-    let mut index = std::collections::HashMap::new();
-    let mut mesh = TriMesh::default();
-    for t in triangles {
-        let tri = t.map(|v| {
-            *index.entry(v).or_insert_with(|| {
-                mesh.vertices.push(nodes[v as usize]);
-                (mesh.vertices.len() - 1) as u32
-            })
-        });
-        mesh.triangles.push(tri);
-    }
-    mesh
 }

@@ -11,6 +11,7 @@ pub mod spatial;
 pub mod surface;
 pub mod tet;
 pub mod topology;
+pub mod union;
 
 pub use domain::LabelledDomain;
 pub use surface::TriMesh;

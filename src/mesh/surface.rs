@@ -51,6 +51,23 @@ impl TriMesh {
             .sum()
     }
 
+    /// The surface of `triangles` over a larger node array, with only the nodes they use
+    /// (in order of first use).
+    pub fn compacted(triangles: &[[u32; 3]], nodes: &[Point3<f64>]) -> TriMesh {
+        let mut index = std::collections::HashMap::new();
+        let mut mesh = TriMesh::default();
+        for t in triangles {
+            let tri = t.map(|v| {
+                *index.entry(v).or_insert_with(|| {
+                    mesh.vertices.push(nodes[v as usize]);
+                    (mesh.vertices.len() - 1) as u32
+                })
+            });
+            mesh.triangles.push(tri);
+        }
+        mesh
+    }
+
     /// Barycentre of triangle `t`.
     pub fn triangle_centroid(&self, t: usize) -> Point3<f64> {
         let [a, b, c] = self.corners(t);

@@ -13,9 +13,13 @@ use crate::Error;
 use crate::atlas::{Atlas, Part};
 use crate::image::IngestConfig;
 use crate::mesh::TriMesh;
+use crate::mesh::union::outer_surface;
 use crate::meshdev::sampling::DEFAULT_SEED;
 use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures};
 use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
+
+/// The name of the separate ossicles' score as one solid (as a fused reference is named).
+const CHAIN: &str = "chain";
 
 /// Area samples per surface and direction: the sampling error of a mean distance is then far
 /// below a micrometre on an ossicle (~30 mm² of surface), at a fraction of the default cost.
@@ -82,13 +86,30 @@ pub fn score(
     }
     // a fused reference (one surface for the whole chain, as a CT segmentation that does not
     // separate the ossicles gives) against the registered chain's outer surface as one solid
+    let has_chain = Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty());
+    let mut fused_given = false;
     for (fused, _) in FUSED_NAMES {
         let Some(truth) = reference.surfaces.get(fused) else {
             continue;
         };
-        if Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty()) {
+        fused_given = true;
+        if has_chain {
             jobs.push((fused, atlas.chain_surface(nodes), truth));
         }
+    }
+    // separate ossicles are scored as that solid too: an image cannot show where one ossicle
+    // ends and the next begins at a joint, so only the chain's outer surface is the image's
+    // to decide (docs/metrics.md); not for surfaces without an inside
+    let bones: Option<Vec<&TriMesh>> = Part::BONES
+        .iter()
+        .map(|p| reference.surfaces.get(p.name()))
+        .collect();
+    let union = match bones {
+        Some(bones) if has_chain && !fused_given => outer_surface(&bones, "reference").ok(),
+        _ => None,
+    };
+    if let Some(union) = &union {
+        jobs.push((CHAIN, atlas.chain_surface(nodes), union));
     }
     for (name, test, truth) in jobs {
         let c = compare(&test, truth, &options)?;
