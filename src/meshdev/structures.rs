@@ -11,6 +11,7 @@ use crate::image::{ImageError, IngestConfig};
 use crate::mesh::TriMesh;
 use crate::mesh::io::{obj, ply, stl, vtu};
 use crate::mesh::isosurface::label_surface;
+use crate::mesh::union::outer_surface;
 
 /// The label numbers of the project's label maps (phantom segmentations).
 pub const DEFAULT_LABELS: [(u16, &str); 4] =
@@ -213,7 +214,7 @@ pub struct Pair {
 
 /// Pairs structures by (case-insensitive) name. `aliases` maps a reference name to test names
 /// (the `--pair` option); a fused reference name (e.g. "ossicles") pairs with the union of its
-/// parts. Returns the pairs and the names left unpaired on either side.
+/// parts (their outer surface, `mesh::union`, when they are closed surfaces). Returns the pairs and the names left unpaired on either side.
 pub fn pair_structures(
     reference: &[Structure],
     test: &[Structure],
@@ -245,10 +246,16 @@ pub fn pair_structures(
             continue;
         }
         used.extend(wanted);
+        // one part is itself; several are the outer surface of their union when they are
+        // closed, else (no inside to decide what hides what) all their faces
+        let test = match parts.as_slice() {
+            [one] => (*one).clone(),
+            _ => outer_surface(&parts, "test").unwrap_or_else(|_| merge(&parts)),
+        };
         pairs.push(Pair {
             name: r.name.clone(),
             reference: r.mesh.clone(),
-            test: merge(&parts),
+            test,
         });
     }
     unpaired.extend(
@@ -291,10 +298,13 @@ mod tests {
         assert_eq!(pairs.len(), 3);
         let fused = &pairs[1];
         assert_eq!(fused.name, "ossicles");
-        let parts = test[0].mesh.triangles.len()
-            + test[1].mesh.triangles.len()
-            + test[2].mesh.triangles.len();
-        assert_eq!(fused.test.triangles.len(), parts);
+        // the malleus and incus spheres overlap: their union hides part of each
+        let parts: f64 = test[..3].iter().map(|s| s.mesh.area()).sum();
+        let (area, stapes) = (fused.test.area(), test[2].mesh.area());
+        assert!(
+            area > stapes + test[1].mesh.area() && area < parts - 1.0,
+            "{area} of {parts}"
+        );
         assert!(unpaired.is_empty(), "{unpaired:?}");
         let (_, unpaired) = pair_structures(&[named("cochlea", 1.0)], &test, &BTreeMap::new());
         assert_eq!(unpaired.len(), 5);

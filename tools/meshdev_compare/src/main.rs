@@ -24,7 +24,8 @@ use otoatlas::meshdev::{ColourRange, CompareOptions, Sampling, compare};
     after_help = "REFERENCE and TEST are each a mesh file (.ply .stl .obj .vtu), a label map
 (.nii .nii.gz; labels 1=malleus 2=incus 3=stapes 4=eardrum unless --labels), or a folder of
 per-structure meshes named by structure. A reference named 'ossicles' or 'chain' is compared
-with the union of the test's malleus, incus and stapes.
+with the union of the test's malleus, incus and stapes (their outer surface when each is
+closed).
 
 Examples:
   meshdev_compare sample_cases/case-001/segmentation out/case-001/registered/surfaces
