@@ -60,7 +60,7 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
                 let centre = part.triangle_centroid(t);
                 let probe: Point3<f64> = centre + normal * CONTACT_MM;
                 indexed.iter().enumerate().all(|(j, other)| {
-                    if j == i {
+                    if j == i || !near_box(other.bounds(), &centre) {
                         return true;
                     }
                     let outside = other.signed_distance(&probe) > 0.0;
@@ -85,6 +85,12 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
             .extend(piece.triangles.iter().map(|t| t.map(|v| v + base)));
     }
     Ok(out)
+}
+
+/// Whether `p` lies within `CONTACT_MM` of the box (`lo`, `hi`): outside it, `p` and its probe
+/// are outside the part the box bounds, and need no closest-point query.
+fn near_box((lo, hi): (Point3<f64>, Point3<f64>), p: &Point3<f64>) -> bool {
+    (0..3).all(|k| p[k] >= lo[k] - 2.0 * CONTACT_MM && p[k] <= hi[k] + 2.0 * CONTACT_MM)
 }
 
 #[cfg(test)]

@@ -18,8 +18,8 @@ use crate::meshdev::sampling::DEFAULT_SEED;
 use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures};
 use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
 
-/// The name of the separate ossicles' score as one solid (as a fused reference is named).
-const CHAIN: &str = "chain";
+/// The name given to the separate ossicles united (one of the fused names).
+const CHAIN: &str = FUSED_NAMES[1].0;
 
 /// Area samples per surface and direction: the sampling error of a mean distance is then far
 /// below a micrometre on an ossicle (~30 mm² of surface), at a fraction of the default cost.
@@ -32,15 +32,26 @@ pub struct Reference {
 
 impl Reference {
     /// Reads a segmentation folder (per-structure meshes, or a label map with the default
-    /// label table: 1 malleus, 2 incus, 3 stapes, 4 eardrum).
+    /// label table: 1 malleus, 2 incus, 3 stapes, 4 eardrum). Separate, closed ossicles are
+    /// also united into the chain as one solid (`chain`), unless a fused surface is given:
+    /// an image cannot show where one ossicle ends and the next begins at a joint, so only
+    /// the chain's outer surface is the image's to decide (docs/metrics.md).
     pub fn load(path: &Path, ingest: &IngestConfig) -> Result<Reference, Error> {
         let structures = load_structures(path, &default_label_table(), ingest)?;
-        Ok(Reference {
-            surfaces: structures
-                .into_iter()
-                .map(|s| (s.name.to_ascii_lowercase(), s.mesh))
-                .collect(),
-        })
+        let mut surfaces: BTreeMap<String, TriMesh> = structures
+            .into_iter()
+            .map(|s| (s.name.to_ascii_lowercase(), s.mesh))
+            .collect();
+        let fused_given = FUSED_NAMES.iter().any(|(f, _)| surfaces.contains_key(*f));
+        let bones: Option<Vec<&TriMesh>> =
+            Part::BONES.iter().map(|p| surfaces.get(p.name())).collect();
+        if let Some(bones) = bones.filter(|_| !fused_given)
+            // surfaces without an inside are not united
+            && let Ok(chain) = outer_surface(&bones, "reference")
+        {
+            surfaces.insert(CHAIN.to_string(), chain);
+        }
+        Ok(Reference { surfaces })
     }
 }
 
@@ -86,30 +97,13 @@ pub fn score(
     }
     // a fused reference (one surface for the whole chain, as a CT segmentation that does not
     // separate the ossicles gives) against the registered chain's outer surface as one solid
-    let has_chain = Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty());
-    let mut fused_given = false;
     for (fused, _) in FUSED_NAMES {
         let Some(truth) = reference.surfaces.get(fused) else {
             continue;
         };
-        fused_given = true;
-        if has_chain {
+        if Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty()) {
             jobs.push((fused, atlas.chain_surface(nodes), truth));
         }
-    }
-    // separate ossicles are scored as that solid too: an image cannot show where one ossicle
-    // ends and the next begins at a joint, so only the chain's outer surface is the image's
-    // to decide (docs/metrics.md); not for surfaces without an inside
-    let bones: Option<Vec<&TriMesh>> = Part::BONES
-        .iter()
-        .map(|p| reference.surfaces.get(p.name()))
-        .collect();
-    let union = match bones {
-        Some(bones) if has_chain && !fused_given => outer_surface(&bones, "reference").ok(),
-        _ => None,
-    };
-    if let Some(union) = &union {
-        jobs.push((CHAIN, atlas.chain_surface(nodes), union));
     }
     for (name, test, truth) in jobs {
         let c = compare(&test, truth, &options)?;
