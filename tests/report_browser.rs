@@ -363,8 +363,8 @@ fn charts_read_cleanly_in_chromium() {
     );
     assert_eq!(
         case.len(),
-        8,
-        "4 histograms, convergence and 3 mechanics charts"
+        9,
+        "5 histograms (the 4 structures and the chain as one solid), convergence and 3 mechanics charts"
     );
     case.iter().for_each(assert_chart_reads_cleanly);
     let texts: Vec<&str> = case

@@ -19,7 +19,9 @@
 //!   would invert (within `SOFTEN_RADIUS_MM`) half as stiff, so the FEM smooths more there
 //!   while the rest of the chain keeps converging; after four halvings at one place it stops
 //!   there and says so. A step that would flatten an element below its `floors`
-//!   (`mesh::quality::ElementFloors`) is refused the same way. The FEM's own guard keeps a
+//!   (`mesh::quality::ElementFloors`) is refused the same way, and so is the solver's last
+//!   iterate when it refuses a step that would invert one (it inverts nothing, but may be
+//!   flat). The FEM's own guard keeps a
 //!   tenth of each element's volume at the level's rest shape, not its shape: on phantoms of
 //!   real chains, springs on the bone around a soft tendon or joint element sheared it flat
 //!   (shape quality 0.007-0.018, which `verify` refuses in a package).
@@ -270,7 +272,14 @@ pub fn deform(
                     )
                 })
             }
-            Err(e @ FemError::StepRejected { element, .. }) => Some((element, e.to_string())),
+            Err(e @ FemError::StepRejected { element, .. }) => {
+                // the solver stopped at its last iterate that inverts nothing, which may
+                // still be flat
+                if !floors.failing(&x).is_empty() {
+                    x = before;
+                }
+                Some((element, e.to_string()))
+            }
             Err(e) => return Err(e.into()),
         };
         if let Some((element, message)) = rejected {
