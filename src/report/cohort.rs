@@ -13,6 +13,7 @@ use super::metrics::{
 use super::plot::{SMALL_N, Target, box_plot_svg};
 use crate::atlas::Part;
 use crate::meshdev::SurfaceDistances;
+use crate::meshdev::structures::FUSED_NAMES;
 
 /// Most cases listed as the worst.
 const WORST_LISTED: usize = 10;
@@ -217,16 +218,21 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
     } else {
         let mut masd: Vec<(String, Vec<f64>)> = Vec::new();
         let mut hd95: Vec<(String, Vec<f64>)> = Vec::new();
-        for part in Part::STRUCTURES {
+        // each structure, then the chain as one solid (fused or united, docs/metrics.md)
+        let names = Part::STRUCTURES
+            .iter()
+            .map(|p| p.name())
+            .chain(FUSED_NAMES.iter().map(|(name, _)| *name));
+        for name in names {
             let values = |f: fn(&SurfaceDistances) -> f64| -> Vec<f64> {
                 scored
                     .iter()
-                    .filter_map(|(_, s)| s.get(part.name()).map(|m| f(&m.registered)))
+                    .filter_map(|(_, s)| s.get(name).map(|m| f(&m.registered)))
                     .collect()
             };
-            if scored.iter().any(|(_, s)| s.contains_key(part.name())) {
-                masd.push((part.name().to_string(), values(|d| d.masd)));
-                hd95.push((part.name().to_string(), values(|d| d.hd95)));
+            if scored.iter().any(|(_, s)| s.contains_key(name)) {
+                masd.push((name.to_string(), values(|d| d.masd)));
+                hd95.push((name.to_string(), values(|d| d.hd95)));
             }
         }
         let figures: Vec<Figure> = [
