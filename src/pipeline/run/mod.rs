@@ -5,24 +5,23 @@
 //! succeeded; the patient package `OUT/package/` is written last, as a whole
 //! (`export::package`).
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use std::collections::BTreeMap;
 
 use nalgebra::Point3;
-use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+
+mod landmarks;
 
 use super::Case;
 use super::score::{Reference, StructureScore, score};
-use super::stage::Stage;
+use super::stage::{Clock, Stage, artefact_path, read_record, run_or_resume};
 use crate::Error;
 use crate::atlas::Atlas;
 use crate::atlas::export::export_atlas;
 use crate::config::Config;
-use crate::ear::{LandmarkFile, read_landmarks, write_json_with};
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::export::MechanicsSummary;
 use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
@@ -32,17 +31,12 @@ use crate::io_util::{write_atomic, write_json_file};
 use crate::mechanics::{Condition, Validation};
 use crate::mesh::io::ply::{VertexAttributes, write_ply};
 use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
-use crate::pipeline::auto_landmarks::{proposal_record, propose};
 use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
 use crate::register::DeformSettings;
 use crate::register::atlas_fit::{DeformRecord, LevelSeconds, deform_atlas, fit_landmarks, place};
-use crate::register::auto_landmarks::{Proposal, SideSource};
 use crate::register::deform::DeformStatus;
-use crate::register::landmarks::{
-    ImageCheck, LandmarkError, LandmarkWarning, PromptInput, check_against_registration,
-    check_landmarks_on_image, prompt_landmarks,
-};
+use crate::register::landmarks::{LandmarkWarning, check_against_registration};
 use crate::register::rigid::{RigidFit, RigidRecord};
 use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
@@ -89,169 +83,6 @@ pub struct RunSummary {
     /// Seconds per step: the stages that ran, then "validate" (when on) and "report".
     pub timings: Vec<(&'static str, f64)>,
     pub out: PathBuf,
-}
-
-/// The side of the ear, where it came from, and a warning when `--side` overrides a
-/// disagreeing source. Without `--side`, a landmark file and a DICOM laterality that disagree
-/// are an error naming both (a mirrored atlas on the wrong ear registers badly, silently).
-fn side_of(
-    opts: &RunOptions,
-    file: &LandmarkFile,
-    image: &LoadedImage,
-) -> Result<(Side, &'static str, Option<LandmarkWarning>), Error> {
-    let image_side = image.info.laterality.as_deref().and_then(Side::parse);
-    let sources = [
-        ("landmark file", file.side),
-        ("DICOM laterality", image_side),
-    ];
-    if let Some(chosen) = opts.side {
-        let against: Vec<String> = sources
-            .iter()
-            .filter_map(|(what, side)| side.filter(|s| *s != chosen).map(|s| (what, s)))
-            .map(|(what, s)| format!("the {what} ({})", s.as_str()))
-            .collect();
-        let warning =
-            (!against.is_empty()).then_some(LandmarkWarning::SideOverridden { chosen, against });
-        return Ok((chosen, "--side", warning));
-    }
-    match (file.side, image_side) {
-        (Some(f), Some(i)) if f != i => Err(Error::Usage(format!(
-            "the landmark file says the {} ear, the image's DICOM laterality the {}: check              that they are of the same ear, and give --side to choose",
-            f.as_str(),
-            i.as_str()
-        ))),
-        (Some(f), _) => Ok((f, "landmark file", None)),
-        (None, Some(i)) => Ok((i, "DICOM laterality", None)),
-        (None, None) => Err(Error::Usage(
-            "the side of the ear is unknown: the image has no Laterality (0020,0060) or \
-             ImageLaterality (0020,0062) and the landmark file does not say; give --side left or \
-             --side right"
-                .into(),
-        )),
-    }
-}
-
-fn artefact_path(out: &Path, stage: Stage) -> PathBuf {
-    out.join("stages").join(stage.artefact())
-}
-
-/// The artefact an earlier run's `stage` wrote, read back by the type that wrote it.
-fn read_record<T: DeserializeOwned>(out: &Path, stage: Stage, from: Stage) -> Result<T, Error> {
-    let path = artefact_path(out, stage);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        Error::Usage(format!(
-            "--from {}: cannot read {} from an earlier run ({e}); run from an earlier stage",
-            from.name(),
-            path.display()
-        ))
-    })?;
-    serde_json::from_str(&text).map_err(|e| {
-        Error::Usage(format!(
-            "{}: not a {} artefact ({e}); run from an earlier stage",
-            path.display(),
-            stage.name()
-        ))
-    })
-}
-
-/// The wall time of each step that ran, in order.
-#[derive(Default)]
-struct Clock(Vec<(&'static str, f64)>);
-
-impl Clock {
-    fn record(&mut self, step: &'static str, started: Instant) {
-        self.0.push((step, started.elapsed().as_secs_f64()));
-    }
-}
-
-/// Runs `stage` when the run starts at or before it (its artefact written, its time
-/// recorded), or reads the artefact an earlier run wrote.
-fn run_or_resume<T: Serialize + DeserializeOwned>(
-    out: &Path,
-    from: Stage,
-    stage: Stage,
-    clock: &mut Clock,
-    run: impl FnOnce() -> Result<T, Error>,
-) -> Result<T, Error> {
-    if from > stage {
-        return read_record(out, stage, from);
-    }
-    let started = Instant::now();
-    let value = run()?;
-    write_json_file(&artefact_path(out, stage), &value)?;
-    clock.record(stage.name(), started);
-    Ok(value)
-}
-
-/// The patient's landmarks: proposed from the image (see [`AutoLandmarks`]), `--landmarks`,
-/// the case's file, or the prompt on a terminal; with the proposal when there is one.
-fn landmark_input(
-    cx: Context,
-    ingested: &Ingested,
-    sampler: &Sampler,
-) -> Result<(LandmarkFile, Option<Proposal>), Error> {
-    let (case, opts, progress) = (cx.case, cx.opts, cx.progress);
-    let given = opts.landmarks.as_ref().or(case.landmarks.as_ref());
-    let auto = match opts.auto_landmarks {
-        AutoLandmarks::Always => true,
-        AutoLandmarks::WhenMissing => given.is_none(),
-        AutoLandmarks::Never => false,
-    };
-    let propose_here = || {
-        propose(
-            &ingested.loaded,
-            sampler,
-            opts.atlas.as_deref(),
-            opts.side,
-            cx.config,
-            progress,
-        )
-    };
-    if auto {
-        if let Some(path) = given {
-            progress.log(&format!(
-                "{}: landmarks proposed from the image; {} is not read",
-                case.id,
-                path.display()
-            ));
-        }
-        progress.log(&format!(
-            "{}: proposing the landmarks from the image",
-            case.id
-        ));
-        let proposal = propose_here()?;
-        let file = LandmarkFile {
-            landmarks: proposal.landmarks,
-            side: Some(proposal.side),
-            notes: vec!["proposed from the image".into()],
-        };
-        return Ok((file, Some(proposal)));
-    }
-    if let Some(path) = given {
-        return Ok((read_landmarks(path)?, None));
-    }
-    if std::io::stdin().is_terminal() {
-        progress.log("no landmark file: type the three landmarks (Enter accepts a proposal)");
-        let proposal = propose_here();
-        if let Err(e) = &proposal {
-            progress.log(&format!("no proposal to offer: {e}"));
-        }
-        let defaults = proposal.as_ref().ok().map(|p| &p.landmarks);
-        let landmarks = prompt_landmarks(PromptInput::Terminal, sampler, defaults)?;
-        let file = LandmarkFile {
-            landmarks,
-            side: None,
-            notes: vec!["typed at the prompt".into()],
-        };
-        return Ok((file, None));
-    }
-    Err(Error::Usage(format!(
-        "{}: no landmarks (landmarks.fcsv, .mrk.json, .json or .csv); give --landmarks FILE, \
-         pick them with `otoatlas landmarks {}`, give --auto-landmarks to have them proposed \
-         from the image, or run on a terminal to be prompted",
-        case.root.display(),
-        case.root.display()
-    )))
 }
 
 /// The outputs a run writes after its stages (registered/, metrics, report, timings,
@@ -356,7 +187,7 @@ pub fn run_case(
             case.image.display()
         ))
     })?;
-    let mut placed = landmarks(cx, &ingested, &sampler, &mut clock)?;
+    let mut placed = landmarks::landmarks(cx, &ingested, &sampler, &mut clock)?;
     let fit = rigid(cx, &placed, &mut clock)?;
     let rigid_nodes = place(&placed.atlas, &fit);
     let deformed = deform(
@@ -517,106 +348,6 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
         record,
         step,
     })
-}
-
-/// Landmarks and side: read (or prompted), checked against the image, the atlas mirrored to
-/// the side.
-fn landmarks(
-    cx: Context,
-    ingested: &Ingested,
-    sampler: &Sampler,
-    clock: &mut Clock,
-) -> Result<Placed, Error> {
-    let Context {
-        case,
-        opts,
-        config,
-        progress,
-    } = cx;
-    progress.case_stage(&case.id, Stage::Landmarks.name());
-    let out = &opts.out;
-    let t = Instant::now();
-    let (file, proposal) = if opts.from <= Stage::Landmarks {
-        landmark_input(cx, ingested, sampler)?
-    } else {
-        (read_landmarks(&artefact_path(out, Stage::Landmarks))?, None)
-    };
-    let proposal_record = match (&proposal, opts.from <= Stage::Landmarks) {
-        (Some(p), _) => Some(proposal_record(p)),
-        (None, true) => None,
-        // resumed: the record the landmarks stage kept, if they were proposed
-        (None, false) => read_proposal_record(&artefact_path(out, Stage::Landmarks)),
-    };
-    let (side, mut side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
-    if let Some(p) = &proposal {
-        side_source = p.side_source.describe();
-    } else if let Some(source) = proposal_record
-        .as_ref()
-        .and_then(|r| serde_json::from_value::<SideSource>(r["side_source"].clone()).ok())
-    {
-        side_source = source.describe();
-    }
-    let atlas: Atlas = crate::atlas::load_atlas(opts.atlas.as_deref(), Some(side))?;
-    let patient = file.landmarks;
-    let image_check = ImageCheck {
-        atlas: &atlas,
-        sampler,
-        step_mm: ingested.step,
-        probe: &config.deform.probe,
-        with_scale: config.rigid.with_scale,
-    };
-    let mut warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
-        .map_err(|e| {
-            // name the file to correct (none for landmarks typed at the prompt)
-            let path = match opts.from <= Stage::Landmarks {
-                true => opts.landmarks.as_ref().or(case.landmarks.as_ref()).cloned(),
-                false => Some(artefact_path(out, Stage::Landmarks)),
-            };
-            match path {
-                Some(path) => LandmarkError::InFile {
-                    path,
-                    source: Box::new(e),
-                },
-                None => e,
-            }
-        })?;
-    warnings.extend(side_warning);
-    warnings.extend(proposal.as_ref().and_then(Proposal::side_warning));
-    for warning in &warnings {
-        progress.log(&format!("{}: landmark warning: {warning}", case.id));
-    }
-    if opts.from <= Stage::Landmarks {
-        let mut extra = serde_json::Map::new();
-        if let Some(record) = &proposal_record {
-            extra.insert("proposal".into(), record.clone());
-        }
-        write_atomic(
-            &artefact_path(out, Stage::Landmarks),
-            write_json_with(&patient, Some(side), extra).as_bytes(),
-        )?;
-        clock.record(Stage::Landmarks.name(), t);
-    }
-    progress.log(&format!(
-        "{}: {} ear (from the {side_source}), atlas '{}'",
-        case.id,
-        side.as_str(),
-        atlas.name
-    ));
-    Ok(Placed {
-        side,
-        side_source,
-        atlas,
-        patient,
-        warnings,
-        proposal: proposal_record,
-    })
-}
-
-/// The proposal record a landmarks artefact keeps, if its landmarks were proposed.
-fn read_proposal_record(path: &Path) -> Option<serde_json::Value> {
-    let text = crate::io_util::read_text(path).ok()?;
-    let mut doc: serde_json::Value = serde_json::from_str(&text).ok()?;
-    Some(doc.get_mut("proposal")?.take())
 }
 
 /// The rigid (or similarity) fit of the atlas landmarks onto the patient's.
