@@ -210,11 +210,15 @@ pub struct Pair {
     pub name: String,
     pub reference: TriMesh,
     pub test: TriMesh,
+    /// How the test surface was made, when a user should know: several test parts that could
+    /// not be united (one not closed) are all their faces, joint facets included.
+    pub note: Option<String>,
 }
 
 /// Pairs structures by (case-insensitive) name. `aliases` maps a reference name to test names
 /// (the `--pair` option); a fused reference name (e.g. "ossicles") pairs with the union of its
-/// parts (their outer surface, `mesh::union`, when they are closed surfaces). Returns the pairs and the names left unpaired on either side.
+/// parts (their outer surface, `mesh::union`, when they are closed surfaces, else all their
+/// faces, with a note). Returns the pairs and the names left unpaired on either side.
 pub fn pair_structures(
     reference: &[Structure],
     test: &[Structure],
@@ -245,17 +249,28 @@ pub fn pair_structures(
             unpaired.push(format!("reference {}", r.name));
             continue;
         }
-        used.extend(wanted);
+        used.extend(wanted.iter().cloned());
         // one part is itself; several are the outer surface of their union when they are
         // closed, else (no inside to decide what hides what) all their faces
-        let test = match parts.as_slice() {
-            [one] => (*one).clone(),
-            _ => outer_surface(&parts, "test").unwrap_or_else(|_| merge(&parts)),
+        let (test, note) = match parts.as_slice() {
+            [one] => ((*one).clone(), None),
+            _ => match outer_surface(&parts, "test") {
+                Ok(union) => (union, None),
+                Err(e) => (
+                    merge(&parts),
+                    Some(format!(
+                        "{}: the test's {} compared with all their faces, facets where they                          meet included, as they could not be united ({e})",
+                        r.name,
+                        wanted.join(", ")
+                    )),
+                ),
+            },
         };
         pairs.push(Pair {
             name: r.name.clone(),
             reference: r.mesh.clone(),
             test,
+            note,
         });
     }
     unpaired.extend(
@@ -278,6 +293,10 @@ mod tests {
             name: name.into(),
             mesh: shapes::icosphere(Point3::new(r * 3.0, 0.0, 0.0), r, 1),
         }
+    }
+
+    fn parts_triangles(parts: &[Structure]) -> usize {
+        parts.iter().map(|s| s.mesh.triangles.len()).sum()
     }
 
     #[test]
@@ -306,6 +325,17 @@ mod tests {
             "{area} of {parts}"
         );
         assert!(unpaired.is_empty(), "{unpaired:?}");
+        assert!(pairs.iter().all(|p| p.note.is_none()));
+        // an open stapes: no inside, so all the faces, and a note saying so
+        let mut open = test.clone();
+        open[2].mesh.triangles.pop();
+        let (pairs, _) = pair_structures(&reference, &open, &aliases);
+        assert_eq!(pairs[1].test.triangles.len(), parts_triangles(&open[..3]));
+        let note = pairs[1].note.as_deref().unwrap_or_default();
+        assert!(
+            note.contains("malleus, incus, stapes") && note.contains("not a closed"),
+            "{note}"
+        );
         let (_, unpaired) = pair_structures(&[named("cochlea", 1.0)], &test, &BTreeMap::new());
         assert_eq!(unpaired.len(), 5);
     }

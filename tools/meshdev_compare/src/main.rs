@@ -183,11 +183,15 @@ fn run(args: &Args) -> Result<String, (u8, String)> {
         "(mm; Dice at {} mm; MD = MeshDev-style one-sided per-vertex test->reference)",
         args.tolerance
     );
+    let notes: Vec<&str> = pairs.iter().filter_map(|p| p.note.as_deref()).collect();
+    for note in &notes {
+        let _ = writeln!(text, "note: {note}");
+    }
     for u in &unpaired {
         let _ = writeln!(text, "unpaired: {u}");
     }
     if args.json {
-        let doc = serde_json::json!({ "structures": json, "unpaired": unpaired, "tolerance_mm": args.tolerance });
+        let doc = serde_json::json!({ "structures": json, "unpaired": unpaired, "notes": notes, "tolerance_mm": args.tolerance });
         return Ok(serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n");
     }
     Ok(text)
