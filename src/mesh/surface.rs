@@ -68,6 +68,19 @@ impl TriMesh {
         mesh
     }
 
+    /// The surfaces side by side in one mesh (vertices and triangles appended in order; faces
+    /// where they touch or overlap are kept: `mesh::union` drops those).
+    pub fn concatenated(meshes: &[&TriMesh]) -> TriMesh {
+        let mut out = TriMesh::default();
+        for m in meshes {
+            let base = out.vertices.len() as u32;
+            out.vertices.extend_from_slice(&m.vertices);
+            out.triangles
+                .extend(m.triangles.iter().map(|t| t.map(|v| v + base)));
+        }
+        out
+    }
+
     /// Barycentre of triangle `t`.
     pub fn triangle_centroid(&self, t: usize) -> Point3<f64> {
         let [a, b, c] = self.corners(t);

@@ -49,7 +49,7 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
         .par_iter()
         .map(|p| SignedSurface::new(p, role))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut out = TriMesh::default();
+    let mut pieces = Vec::with_capacity(parts.len());
     for (i, part) in parts.iter().enumerate() {
         let keep: Vec<bool> = (0..part.triangles.len())
             .into_par_iter()
@@ -78,13 +78,9 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
             .filter(|(_, k)| **k)
             .map(|(t, _)| *t)
             .collect();
-        let piece = TriMesh::compacted(&kept, &part.vertices);
-        let base = out.vertices.len() as u32;
-        out.vertices.extend_from_slice(&piece.vertices);
-        out.triangles
-            .extend(piece.triangles.iter().map(|t| t.map(|v| v + base)));
+        pieces.push(TriMesh::compacted(&kept, &part.vertices));
     }
-    Ok(out)
+    Ok(TriMesh::concatenated(&pieces.iter().collect::<Vec<_>>()))
 }
 
 /// Whether `p` lies within `CONTACT_MM` of the box (`lo`, `hi`): outside it, `p` and its probe

@@ -192,18 +192,6 @@ pub fn default_label_table() -> Vec<(u16, String)> {
         .collect()
 }
 
-/// Concatenates surfaces into one mesh (their union, for a fused reference).
-pub fn merge(meshes: &[&TriMesh]) -> TriMesh {
-    let mut out = TriMesh::default();
-    for m in meshes {
-        let base = out.vertices.len() as u32;
-        out.vertices.extend_from_slice(&m.vertices);
-        out.triangles
-            .extend(m.triangles.iter().map(|t| t.map(|v| v + base)));
-    }
-    out
-}
-
 /// A reference structure and the test surface to compare with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pair {
@@ -257,9 +245,10 @@ pub fn pair_structures(
             _ => match outer_surface(&parts, "test") {
                 Ok(union) => (union, None),
                 Err(e) => (
-                    merge(&parts),
+                    TriMesh::concatenated(&parts),
                     Some(format!(
-                        "{}: the test's {} compared with all their faces, facets where they                          meet included, as they could not be united ({e})",
+                        "{}: the test's {} compared with all their faces, facets where they \
+                         meet included, as they could not be united ({e})",
                         r.name,
                         wanted.join(", ")
                     )),

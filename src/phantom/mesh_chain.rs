@@ -26,7 +26,7 @@ use crate::ear::Landmarks;
 use crate::ear::read_landmarks;
 use crate::mesh::TriMesh;
 use crate::mesh::spatial::{Bvh, SignedSurface};
-use crate::meshdev::structures::{merge, read_surface};
+use crate::meshdev::structures::read_surface;
 use crate::register::rigid::{SimilarityTransform, fit_similarity};
 
 /// Surface file names per part, tried in this order (PLY, STL, OBJ).
@@ -230,7 +230,7 @@ impl MeshChain {
         };
         let fit = fit_similarity(&atlas.landmarks().points(), &chain.landmarks.points(), true)
             .ok_or_else(|| surface_error("the chain's landmarks are collinear".into()))?;
-        let union = merge(&chain.parts.iter().map(|(_, m)| m).collect::<Vec<_>>());
+        let union = TriMesh::concatenated(&chain.parts.iter().map(|(_, m)| m).collect::<Vec<_>>());
         let bvh = Bvh::new(&union, "chain").map_err(|e| surface_error(e.to_string()))?;
         let plain = PatientAnatomy::plain(atlas);
         let samples: Vec<Point3<f64>> = ossicle_surfaces(&plain)
