@@ -88,6 +88,7 @@ pub fn proposal_record(p: &Proposal) -> Value {
             "incudomalleolar": p.searched.incudomalleolar.coords.as_slice(),
             "incudostapedial": p.searched.incudostapedial.coords.as_slice(),
         },
+        "rescales": p.rescales,
         "register_seconds": p.register_seconds,
     })
 }

@@ -60,6 +60,15 @@ pub struct SearchConfig {
     pub min_score: f64,
     /// The coarsest image searched \[mm, smallest voxel spacing\].
     pub max_voxel_mm: f64,
+    /// Times the atlas is placed again, by the similarity that best maps its ossicles onto
+    /// where the registration took them, and registered again from there
+    /// (`auto_landmarks::propose_landmarks`).
+    #[serde(default = "default_rescale_passes")]
+    pub rescale_passes: usize,
+}
+
+fn default_rescale_passes() -> usize {
+    2
 }
 
 impl Default for SearchConfig {
@@ -70,6 +79,7 @@ impl Default for SearchConfig {
             candidates: 32,
             min_score: 0.45,
             max_voxel_mm: 0.5,
+            rescale_passes: default_rescale_passes(),
         }
     }
 }
@@ -228,8 +238,9 @@ impl Steps {
     }
 }
 
-/// The scale a refined pose may take (people's ossicles differ by about ±15 %).
-const SCALE_RANGE: (f64, f64) = (0.8, 1.25);
+/// The scale a refined pose, or a placement after a registration (`auto_landmarks`), may
+/// take (people's ossicles differ by about ±15 %).
+pub(crate) const SCALE_RANGE: (f64, f64) = (0.8, 1.25);
 
 /// Compass search: each of the seven moves (three turns about the chain's centre, three
 /// shifts, the scale) tried both ways; any gain is taken, and when none is left every step is
