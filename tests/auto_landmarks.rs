@@ -2,7 +2,8 @@
 //! are given as bare NIfTI images, which carry no laterality, so the side comes from the
 //! chain's handedness in the image. Truth: each phantom's `truth.json` (the exact landmarks
 //! of its anatomy, before pick noise). Every proposed landmark must be within 0.5 mm of the
-//! truth and the side right; an image without a chain must fail with exit code 2.
+//! truth (0.25 mm where the truth is the atlas's own) and the side right; an image without a
+//! chain must fail with exit code 2.
 
 use std::path::Path;
 
@@ -17,6 +18,13 @@ use crate::registration_real_anatomy::{
 
 /// The largest distance of a proposed landmark from the truth \[mm\] (the target).
 const MAX_ERROR_MM: f64 = 0.5;
+
+/// The same where the truth is the atlas's own landmarks (atlas-shape phantoms), so that no
+/// definition differs \[mm\]: the atlas placed again after its first registration
+/// (`[auto_landmarks] rescale_passes`) brought the worst landmark of the sample cases from
+/// 0.31-0.46 to 0.06-0.12 mm and of the held-out atlas-shape phantoms (with and without
+/// cone-beam artefacts) from 0.40 to 0.19 mm.
+const ATLAS_SHAPE_MAX_ERROR_MM: f64 = 0.25;
 
 fn point(v: &Value) -> [f64; 3] {
     [0, 1, 2].map(|k| v[k].as_f64().unwrap())
@@ -68,11 +76,15 @@ fn the_sample_cases_landmarks_are_found_within_half_a_millimetre() {
     let tmp = tempfile::tempdir().unwrap();
     for case in ["case-001", "case-002", "case-003"] {
         let dir = root().join("sample_cases").join(case);
-        check_proposal(
+        let worst = check_proposal(
             &dir.join("image.nii.gz"),
             &dir.join("truth.json"),
             &tmp.path().join(format!("{case}.fcsv")),
             case,
+        );
+        assert!(
+            worst <= ATLAS_SHAPE_MAX_ERROR_MM,
+            "{case}: a landmark {worst:.3} mm from the atlas's own"
         );
     }
 }
@@ -132,7 +144,7 @@ fn with_cone_beam_artefacts_the_landmarks_are_still_found() {
         let made = otoatlas(&all.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(made.status.success(), "{made:?}");
         let case = out.join("case-001");
-        check_proposal(
+        let worst = check_proposal(
             &case.join("image.nii.gz"),
             &case.join("truth.json"),
             &tmp.path().join(format!(
@@ -144,6 +156,12 @@ fn with_cone_beam_artefacts_the_landmarks_are_still_found() {
                 out.file_name().unwrap().to_string_lossy()
             ),
         );
+        if chain.is_none() {
+            assert!(
+                worst <= ATLAS_SHAPE_MAX_ERROR_MM,
+                "atlas-shape phantom with artefacts: a landmark {worst:.3} mm from the atlas's own"
+            );
+        }
     }
 }
 
