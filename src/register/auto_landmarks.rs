@@ -165,21 +165,23 @@ pub fn propose_landmarks(
         search.other.score,
         search.seconds
     ));
-    let placed: Vec<Point3<f64>> = atlas
-        .nodes()
-        .iter()
-        .map(|p| chosen.atlas_to_image.apply(p))
-        .collect();
+    let place = |t: &SimilarityTransform| -> Vec<Point3<f64>> {
+        atlas.nodes().iter().map(|p| t.apply(p)).collect()
+    };
+    let register = |placed: &[Point3<f64>]| {
+        deform_atlas(
+            atlas,
+            placed,
+            input.sampler,
+            input.step,
+            input.settings,
+            progress,
+        )
+        .map(|registered| registered.deform.positions)
+    };
+    let placed = place(&chosen.atlas_to_image);
     let clock = std::time::Instant::now();
-    let registered = deform_atlas(
-        atlas,
-        &placed,
-        input.sampler,
-        input.step,
-        input.settings,
-        progress,
-    )?;
-    let mut nodes = registered.deform.positions;
+    let mut nodes = register(&placed)?;
     let mut rescales = Vec::with_capacity(input.search.rescale_passes);
     let bones = bone_nodes(atlas);
     for _ in 0..input.search.rescale_passes {
@@ -190,17 +192,7 @@ pub fn propose_landmarks(
         else {
             break;
         };
-        let placed: Vec<Point3<f64>> = atlas.nodes().iter().map(|p| placement.apply(p)).collect();
-        nodes = deform_atlas(
-            atlas,
-            &placed,
-            input.sampler,
-            input.step,
-            input.settings,
-            progress,
-        )?
-        .deform
-        .positions;
+        nodes = register(&place(&placement))?;
         rescales.push(placement.scale);
     }
     let landmarks = atlas.landmark_positions(&nodes);
