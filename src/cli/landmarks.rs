@@ -235,12 +235,13 @@ fn propose_and_write(
         ));
     }
     text.push_str(&format!(
-        "{} ear (from the {}; the mirrored chain fits {:.0} % worse), found in {:.2} s, registered in {:.2} s\nwrote {}, {} and {}\n",
+        "{} ear (from the {}; the mirrored chain fits {:.0} % worse), found in {:.2} s, registered in {:.2} s{}\nwrote {}, {} and {}\n",
         proposal.side.as_str(),
         proposal.side_source.describe(),
         100.0 * proposal.search.side_margin,
         proposal.search.seconds,
         proposal.register_seconds,
+        placed_again(&proposal.rescales),
         fcsv.display(),
         mrk.display(),
         json_path.display()
@@ -268,4 +269,13 @@ fn mrk_path(fcsv: &Path) -> PathBuf {
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     fcsv.with_file_name(format!("{stem}.mrk.json"))
+}
+
+/// ` (placed again at scale 1.010, 1.026)`, or nothing when the atlas was not placed again.
+fn placed_again(scales: &[f64]) -> String {
+    if scales.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = scales.iter().map(|s| format!("{s:.3}")).collect();
+    format!(" (placed again at scale {})", list.join(", "))
 }

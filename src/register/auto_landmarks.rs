@@ -192,6 +192,10 @@ pub fn propose_landmarks(
         else {
             break;
         };
+        progress.log(&format!(
+            "atlas placed again at scale {:.3} (the registered ossicles' similarity); registering again",
+            placement.scale
+        ));
         nodes = register(&place(&placement))?;
         rescales.push(placement.scale);
     }
