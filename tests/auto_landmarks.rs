@@ -421,3 +421,52 @@ fn a_stated_side_the_chain_contradicts_is_warned_about() {
         "{w}"
     );
 }
+
+/// Proposed landmarks that fail a check are named as proposed, not as the case folder's
+/// landmark file (which `--auto-landmarks` does not read): here an umbo-IMJ band no ear has.
+#[test]
+#[ignore = "heavy: a chain search and registrations of case-003; scripts/test.sh runs it"]
+fn proposed_landmarks_that_fail_a_check_are_named_as_proposed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = copy_case(
+        &root().join("sample_cases/case-003"),
+        &tmp.path().join("case-003"),
+        &["image.nii.gz", "landmarks.fcsv"],
+    );
+    let config = crate::common::config_without_validation(tmp.path());
+    let text = std::fs::read_to_string(&config).unwrap();
+    let narrowed = text
+        .replacen(
+            "umbo_imj_typical_mm = [4.55, 6.6]",
+            "umbo_imj_typical_mm = [7.9, 8.0]",
+            1,
+        )
+        .replacen(
+            "umbo_imj_possible_mm = [4.0, 8.0]",
+            "umbo_imj_possible_mm = [7.9, 8.0]",
+            1,
+        );
+    assert_eq!(
+        narrowed.matches("[7.9, 8.0]").count(),
+        2,
+        "the bands were found"
+    );
+    std::fs::write(&config, narrowed).unwrap();
+    let out = tmp.path().join("out");
+    let (code, v) = otoatlas_json(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--auto-landmarks",
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{v}");
+    let error = v["error"].as_str().unwrap();
+    assert!(
+        error.starts_with("the landmarks proposed from the image: ") && error.contains("umbo-IMJ"),
+        "{error}"
+    );
+    assert!(!error.contains("landmarks.fcsv"), "{error}");
+}

@@ -68,7 +68,11 @@ pub(super) fn landmarks(
     };
     let mut warnings = check_landmarks_on_image(&patient, &image_check, &config.landmarks)
         .map_err(|e| {
-            // name the file to correct (none for landmarks typed at the prompt)
+            // name the file to correct (none for landmarks typed at the prompt); proposed
+            // landmarks come from no file, whatever the case folder holds
+            if proposal.is_some() {
+                return LandmarkError::Proposed(Box::new(e));
+            }
             let path = match opts.from <= Stage::Landmarks {
                 true => opts.landmarks.as_ref().or(case.landmarks.as_ref()).cloned(),
                 false => Some(artefact_path(out, Stage::Landmarks)),

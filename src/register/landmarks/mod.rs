@@ -84,6 +84,8 @@ pub enum LandmarkError {
         #[source]
         source: Box<LandmarkError>,
     },
+    #[error("the landmarks proposed from the image: {0}")]
+    Proposed(#[source] Box<LandmarkError>),
     #[error(
         "no landmarks: give --landmarks FILE, put landmarks.fcsv/.mrk.json/.json/.csv in the case folder, or run `otoatlas landmarks CASE` on a terminal"
     )]
