@@ -70,6 +70,22 @@ fn check_proposal(image: &Path, truth: &Path, out: &Path, what: &str) -> f64 {
     worst
 }
 
+/// `otoatlas run CASE --out OUT --auto-landmarks --config CONFIG`, then `extra`: the exit code
+/// and the JSON report.
+fn run_auto(case: &Path, out: &Path, config: &Path, extra: &[&str]) -> (i32, Value) {
+    let mut args = vec![
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--auto-landmarks",
+        "--config",
+        config.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    otoatlas_json(&args)
+}
+
 #[test]
 #[ignore = "heavy: three chain searches and registrations; scripts/test.sh runs it"]
 fn the_sample_cases_landmarks_are_found_within_half_a_millimetre() {
@@ -231,15 +247,7 @@ fn run_with_proposed_landmarks_on_a_real_chain_meets_its_bounds() {
     let case = phantom(&tmp.path().join("104"), "104", "0.3", "right", &chain);
     let out = tmp.path().join("out");
     let config = crate::common::config_without_validation(tmp.path());
-    let (code, m) = otoatlas_json(&[
-        "run",
-        case.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--auto-landmarks",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
+    let (code, m) = run_auto(&case, &out, &config, &[]);
     assert_eq!(code, 0, "{m}");
     assert_eq!(m["side"], "right");
     let (masd, hd95) = chain_scores(&m, "registered");
@@ -394,19 +402,8 @@ fn a_stated_side_the_chain_contradicts_is_warned_about() {
         &["image.nii.gz"],
     );
     let out = tmp.path().join("out");
-    let (code, v) = crate::common::otoatlas_json(&[
-        "run",
-        case.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--auto-landmarks",
-        "--side",
-        "left",
-        "--config",
-        crate::common::config_without_validation(tmp.path())
-            .to_str()
-            .unwrap(),
-    ]);
+    let config = crate::common::config_without_validation(tmp.path());
+    let (code, v) = run_auto(&case, &out, &config, &["--side", "left"]);
     assert_eq!(code, 0, "{v}");
     assert_eq!(v["side"], "left");
     assert_eq!(v["side_source"], "--side");
@@ -453,15 +450,7 @@ fn proposed_landmarks_that_fail_a_check_are_named_as_proposed() {
     );
     std::fs::write(&config, narrowed).unwrap();
     let out = tmp.path().join("out");
-    let (code, v) = otoatlas_json(&[
-        "run",
-        case.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--auto-landmarks",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
+    let (code, v) = run_auto(&case, &out, &config, &[]);
     assert_eq!(code, 2, "{v}");
     let error = v["error"].as_str().unwrap();
     assert!(
