@@ -196,8 +196,19 @@ pub fn propose_landmarks(
             "atlas placed again at scale {:.3} (the registered ossicles' similarity); registering again",
             placement.scale
         ));
-        nodes = register(&place(&placement))?;
-        rescales.push(placement.scale);
+        // a pass refines a registration that succeeded: when it fails, that one stands
+        match register(&place(&placement)) {
+            Ok(again) => {
+                nodes = again;
+                rescales.push(placement.scale);
+            }
+            Err(e) => {
+                progress.log(&format!(
+                    "registering the atlas placed again failed ({e}); the registration before it is kept"
+                ));
+                break;
+            }
+        }
     }
     let landmarks = atlas.landmark_positions(&nodes);
     let support = support(atlas, &nodes, &landmarks, &input);
