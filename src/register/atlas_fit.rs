@@ -16,7 +16,7 @@ use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, def
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::probes::probe_triangles;
 use super::refine::{Refinement, refine};
-use super::rigid::{RigidFit, fit_similarity};
+use super::rigid::{RigidFit, SimilarityTransform, fit_similarity};
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
@@ -29,13 +29,10 @@ pub fn fit_landmarks(atlas: &Atlas, patient: &Landmarks, with_scale: bool) -> Op
     fit_similarity(&source.points(), &patient.points(), with_scale)
 }
 
-/// The atlas nodes mapped by the landmark fit (atlas to patient).
-pub fn place(atlas: &Atlas, fit: &RigidFit) -> Vec<Point3<f64>> {
-    atlas
-        .nodes()
-        .iter()
-        .map(|p| fit.transform.apply(p))
-        .collect()
+/// The atlas nodes mapped by `transform` (atlas to patient: the landmark fit's, or a pose
+/// found in the image).
+pub fn place(atlas: &Atlas, transform: &SimilarityTransform) -> Vec<Point3<f64>> {
+    atlas.nodes().iter().map(|p| transform.apply(p)).collect()
 }
 
 /// Wall-clock seconds of each level of the deformable stage.

@@ -9,7 +9,7 @@ use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
 use super::DeformSettings;
-use super::atlas_fit::deform_atlas;
+use super::atlas_fit::{deform_atlas, place};
 use super::chain_search::{
     ChainSearch, SCALE_RANGE, SearchConfig, SearchError, SideAtlas, search_chain,
 };
@@ -165,9 +165,6 @@ pub fn propose_landmarks(
         search.other.score,
         search.seconds
     ));
-    let place = |t: &SimilarityTransform| -> Vec<Point3<f64>> {
-        atlas.nodes().iter().map(|p| t.apply(p)).collect()
-    };
     let register = |placed: &[Point3<f64>]| {
         deform_atlas(
             atlas,
@@ -179,7 +176,7 @@ pub fn propose_landmarks(
         )
         .map(|registered| registered.deform.positions)
     };
-    let placed = place(&chosen.atlas_to_image);
+    let placed = place(atlas, &chosen.atlas_to_image);
     let clock = std::time::Instant::now();
     let mut nodes = register(&placed)?;
     let mut rescales = Vec::with_capacity(input.search.rescale_passes);
@@ -197,7 +194,7 @@ pub fn propose_landmarks(
             placement.scale
         ));
         // a pass refines a registration that succeeded: when it fails, that one stands
-        match register(&place(&placement)) {
+        match register(&place(atlas, &placement)) {
             Ok(again) => {
                 nodes = again;
                 rescales.push(placement.scale);

@@ -189,7 +189,7 @@ pub fn run_case(
     })?;
     let mut placed = landmarks::landmarks(cx, &ingested, &sampler, &mut clock)?;
     let fit = rigid(cx, &placed, &mut clock)?;
-    let rigid_nodes = place(&placed.atlas, &fit);
+    let rigid_nodes = place(&placed.atlas, &fit.transform);
     let deformed = deform(
         cx,
         &placed.atlas,

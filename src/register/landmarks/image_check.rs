@@ -54,7 +54,7 @@ impl ImageCheck<'_> {
     /// or no triangle could be probed (the atlas placed outside the image).
     pub fn border_fit(&self, landmarks: &Landmarks) -> Option<BorderFit> {
         let fit = fit_landmarks(self.atlas, landmarks, self.with_scale)?;
-        let nodes = place(self.atlas, &fit);
+        let nodes = place(self.atlas, &fit.transform);
         let triangles = probe_triangles(self.atlas);
         let probed = probe_surface(&triangles, &nodes, self.sampler, self.step_mm, self.probe);
         let found: Vec<f64> = probed
