@@ -69,7 +69,7 @@ pub(super) fn read_record<T: DeserializeOwned>(
     from: Stage,
 ) -> Result<T, Error> {
     let path = artefact_path(out, stage);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
+    let text = crate::io_util::read_text(&path).map_err(|e| {
         Error::Usage(format!(
             "--from {}: cannot read {} from an earlier run ({e}); run from an earlier stage",
             from.name(),
