@@ -35,7 +35,7 @@ use serde_json::Value;
 const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side": "right",
  "umbo": [2.351, -3.017, -3.44],
  "incudomalleolar": [-1.031, -0.461, 1.529],
- "incudostapedial": [1.148, 0.358, -2.358]}"#;
+ "incudostapedial": [1.31, 0.218, -2.357]}"#;
 
 /// Regression bounds (see the module doc): chain MASD [voxels and mm], chain HD95 [mm] (per
 /// chain: the CT chain's tail is its footplate rim against the otic capsule and thin processes
