@@ -17,10 +17,10 @@ use std::path::{Path, PathBuf};
 use crate::export::digest::{combined_sha256, file_digests};
 use crate::image::nifti::is_nifti_path;
 
-/// Landmark file names looked for in a case folder, in order of preference.
 /// The names a case folder's image goes by, in the order they are looked for.
 pub const IMAGE_NAMES: [&str; 3] = ["dicom", "image.nii.gz", "image.nii"];
 
+/// Landmark file names looked for in a case folder, in order of preference.
 pub const LANDMARK_FILES: [&str; 4] = [
     "landmarks.fcsv",
     "landmarks.mrk.json",

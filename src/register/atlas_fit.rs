@@ -38,6 +38,8 @@ pub fn place(atlas: &Atlas, transform: &SimilarityTransform) -> Vec<Point3<f64>>
 /// Wall-clock seconds of each level of the deformable stage.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct LevelSeconds {
+    /// The registrations the atlas was placed again from (`placement`).
+    pub placement: f64,
     pub articulate: f64,
     pub fem: f64,
     pub refine: f64,
@@ -53,6 +55,9 @@ pub struct Registered {
     /// The surface level after the FEM levels (absent when `[refine]` is off).
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
+    /// The scale of each placement of the atlas made from a registration before this one
+    /// (`placement::deform_placed_again`), in order.
+    pub placed_again: Vec<f64>,
     pub seconds: LevelSeconds,
 }
 
@@ -70,6 +75,10 @@ pub struct DeformRecord {
     #[serde(default)]
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
+    /// The scale of each placement of the atlas made from a registration before this one
+    /// (`[deform] placement_passes`), in order.
+    #[serde(default)]
+    pub placed_again: Vec<f64>,
     /// The probe step (the smallest voxel spacing) \[mm\].
     pub probe_step_mm: f64,
 }
@@ -84,6 +93,7 @@ impl Registered {
             history: self.deform.history.clone(),
             refinement: self.refinement.clone(),
             eardrum: self.eardrum,
+            placed_again: self.placed_again.clone(),
             probe_step_mm: step,
         }
     }
@@ -230,6 +240,7 @@ pub fn deform_atlas(
         deform: result,
         refinement,
         eardrum,
+        placed_again: Vec::new(),
         seconds,
     })
 }

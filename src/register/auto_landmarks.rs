@@ -10,14 +10,12 @@ use serde::{Deserialize, Serialize};
 
 use super::DeformSettings;
 use super::atlas_fit::{deform_atlas, place};
-use super::chain_search::{
-    ChainSearch, SCALE_RANGE, SearchConfig, SearchError, SideAtlas, search_chain,
-};
+use super::chain_search::{ChainSearch, SearchConfig, SearchError, SideAtlas, search_chain};
 use super::deform::{DeformError, probe_surface};
 use super::landmarks::LandmarkWarning;
+use super::placement::{bone_nodes, placement_from_registration};
 use super::probes::probe_triangles;
-use super::rigid::{SimilarityTransform, fit_similarity};
-use crate::atlas::{Atlas, Part};
+use crate::atlas::Atlas;
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::image::Sampler;
 use crate::progress::Reporter;
@@ -182,11 +180,8 @@ pub fn propose_landmarks(
     let mut rescales = Vec::with_capacity(input.search.rescale_passes);
     let bones = bone_nodes(atlas);
     for _ in 0..input.search.rescale_passes {
-        // a placement outside the sizes people's ossicles have ends the passes: a chain
-        // registered badly (the wrong side's forced on the image, say) shrinks pass by pass
-        let Some(placement) = similarity_of_registration(atlas, &bones, &nodes)
-            .filter(|p| (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&p.scale))
-        else {
+        // a placement outside the sizes people's ossicles have ends the passes
+        let Some(placement) = placement_from_registration(atlas, &bones, &nodes) else {
             break;
         };
         progress.log(&format!(
@@ -222,35 +217,6 @@ pub fn propose_landmarks(
     })
 }
 
-/// The nodes of the ossicles' surfaces, sorted.
-fn bone_nodes(atlas: &Atlas) -> Vec<usize> {
-    let mut nodes: Vec<usize> = Part::BONES
-        .iter()
-        .flat_map(|&part| atlas.part_triangles(part))
-        .flatten()
-        .map(|i| i as usize)
-        .collect();
-    nodes.sort_unstable();
-    nodes.dedup();
-    nodes
-}
-
-/// The similarity that best maps the atlas's `bones` nodes at rest onto `registered`: where
-/// to place the atlas for the next registration. The deformable stage holds the shape it
-/// starts from (the FEM's rest shape), so a start that is too small or too large leaves part
-/// of that error in the registered chain; the chain search's scale is 8-10 % small on the
-/// sample cases (docs/registration.md, "Landmarks from the image"). `None` for a degenerate
-/// fit.
-fn similarity_of_registration(
-    atlas: &Atlas,
-    bones: &[usize],
-    registered: &[Point3<f64>],
-) -> Option<SimilarityTransform> {
-    let rest: Vec<Point3<f64>> = bones.iter().map(|&i| atlas.nodes()[i]).collect();
-    let moved: Vec<Point3<f64>> = bones.iter().map(|&i| registered[i]).collect();
-    fit_similarity(&rest, &moved, true).map(|fit| fit.transform)
-}
-
 /// Each landmark's support on the registered atlas.
 fn support(
     atlas: &Atlas,
@@ -282,41 +248,4 @@ fn support(
             surface_mm2: near,
         }
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::{Rotation3, Vector3};
-
-    #[test]
-    fn the_next_placement_is_the_similarity_the_ossicles_moved_by() {
-        let atlas = crate::atlas::load_atlas(None, None).unwrap();
-        let bones = bone_nodes(&atlas);
-        let eardrum: Vec<u32> = atlas.part_triangles(Part::Eardrum).concat();
-        assert!(
-            eardrum
-                .iter()
-                .any(|i| bones.binary_search(&(*i as usize)).is_err()),
-            "the eardrum has nodes of its own"
-        );
-        let turn = Rotation3::from_euler_angles(0.2, -0.1, 0.3);
-        let shift = Vector3::new(1.0, -2.0, 0.5);
-        let mut moved: Vec<Point3<f64>> = atlas
-            .nodes()
-            .iter()
-            .map(|p| Point3::from(turn * p.coords * 1.1 + shift))
-            .collect();
-        // only the ossicles count: the eardrum's nodes may be anywhere
-        for &i in &eardrum {
-            if bones.binary_search(&(i as usize)).is_err() {
-                moved[i as usize] += Vector3::new(3.0, 0.0, 0.0);
-            }
-        }
-        let placement = similarity_of_registration(&atlas, &bones, &moved).unwrap();
-        assert!((placement.scale - 1.1).abs() < 1e-9, "{placement:?}");
-        for &i in &bones {
-            assert!((placement.apply(&atlas.nodes()[i]) - moved[i]).norm() < 1e-9);
-        }
-    }
 }

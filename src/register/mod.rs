@@ -8,6 +8,7 @@ pub mod chain_search;
 pub mod deform;
 pub mod eardrum;
 pub mod landmarks;
+pub mod placement;
 pub mod probes;
 pub mod refine;
 pub mod rigid;

@@ -34,9 +34,10 @@ use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
 use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
 use crate::register::DeformSettings;
-use crate::register::atlas_fit::{DeformRecord, LevelSeconds, deform_atlas, fit_landmarks, place};
+use crate::register::atlas_fit::{DeformRecord, LevelSeconds, fit_landmarks, place};
 use crate::register::deform::DeformStatus;
 use crate::register::landmarks::{LandmarkWarning, check_against_registration};
+use crate::register::placement::deform_placed_again;
 use crate::register::rigid::{RigidFit, RigidRecord};
 use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
@@ -402,7 +403,8 @@ fn deform(
             deform: &config.deform,
             refine: &config.refine,
         };
-        let registered = deform_atlas(atlas, rigid_nodes, sampler, step, settings, progress)?;
+        let registered =
+            deform_placed_again(atlas, rigid_nodes, sampler, step, settings, progress)?;
         if let DeformStatus::InversionGuard { message } = &registered.deform.status {
             progress.log(&format!(
                 "{}: deformable stage stopped at its last valid state: {message}",

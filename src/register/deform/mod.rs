@@ -81,6 +81,15 @@ pub struct DeformConfig {
     /// followed by another round to equilibrium (0: one round from the articulated atlas)
     /// \[count\].
     pub rest_updates: usize,
+    /// Registrations from which the atlas is placed again before the final one, each without
+    /// the surface level (`placement::deform_placed_again`; 0: registered from the landmark
+    /// placement) \[count\].
+    #[serde(default = "default_placement_passes")]
+    pub placement_passes: usize,
+}
+
+fn default_placement_passes() -> usize {
+    1
 }
 
 /// A surface triangle to probe: three FEM nodes (counter-clockwise seen from outside).
