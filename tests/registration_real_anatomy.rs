@@ -41,15 +41,15 @@ const CT_LANDMARKS: &str = r#"{"coordinate_system": "LPS", "units": "mm", "side"
 /// chain: the CT chain's tail is its footplate rim against the otic capsule and thin processes
 /// its partial volume lost, docs/registration.md), the worst HD95 of SOFA's ossicles scored
 /// one by one [mm] (their labels' ends inside the joints, docs/metrics.md), and the least
-/// improvement of the chain MASD over the landmark fit (the target). The voxel MASD bound
-/// (0.7 until then) and the CT chain's HD95 bound (0.9 mm) were raised when the CT chain's ISJ
-/// was picked again (docs/anatomy.md): from the second pick, seed 101 ends at 0.88 voxel and
-/// 0.94 mm (0.59 voxel and 0.61 mm from the first), the stapes turned 54° instead of 22°.
-const MASD_MAX_VOXELS: f64 = 0.9;
+/// improvement of the chain MASD over the landmark fit (the target). Registered from the
+/// landmark placement alone, the CT chain's second ISJ pick (docs/anatomy.md) took seed 101 to
+/// 0.88 voxel and 0.94 mm; with the atlas placed again from a first registration (`[deform]
+/// placement_passes`), 0.61 voxel and 0.72 mm.
+const MASD_MAX_VOXELS: f64 = 0.7;
 pub(crate) const MASD_MAX_MM: f64 = 0.15;
 const HD95_MAX_MM_SOFA: f64 = 0.3;
 const HD95_MAX_MM_OSSICLE: f64 = 0.6;
-pub(crate) const HD95_MAX_MM_CT: f64 = 1.0;
+pub(crate) const HD95_MAX_MM_CT: f64 = 0.9;
 const MIN_IMPROVEMENT: f64 = 0.5;
 
 fn run_ok(args: &[&str]) {
