@@ -53,7 +53,7 @@ pub(crate) fn placement_from_registration(
 }
 
 /// `deform_atlas` from `placed`, after `settings.deform.placement_passes` registrations that
-/// each place the atlas again ([`placement_from_registration`]). Those registrations are the
+/// each place the atlas again (`placement_from_registration`). Those registrations are the
 /// articulation and the FEM levels only (no surface level, the eardrum following the
 /// manubrium): the placement needs the ossicles' pose and size, not their last detail.
 /// The registration records the scale of each placement made (`placed_again`) and the
