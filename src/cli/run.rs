@@ -93,11 +93,16 @@ pub fn run(
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}), FEM levels {} after {} iterations{}",
+        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}){}, FEM levels {} after {} iterations{}",
         case.id,
         m.side.as_str(),
         m.rigid.rms_mm,
         m.rigid.scale,
+        m.deform
+            .placed_again
+            .last()
+            .map(|s| format!(", placed again at scale {s:.3}"))
+            .unwrap_or_default(),
         m.deform.status.name(),
         m.deform.iterations,
         match &m.deform.refinement {
