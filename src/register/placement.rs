@@ -71,46 +71,44 @@ pub fn deform_placed_again(
     let passes = settings.deform.placement_passes;
     let mut start = placed.to_vec();
     let mut scales = Vec::with_capacity(passes);
-    if passes > 0 {
-        let deform = DeformConfig {
-            probe_eardrum: false,
-            ..settings.deform.clone()
-        };
-        let refine = RefineConfig {
-            enabled: false,
-            ..settings.refine.clone()
-        };
-        let coarse = DeformSettings {
-            articulate: settings.articulate,
-            deform: &deform,
-            refine: &refine,
-        };
-        let bones = bone_nodes(atlas);
-        for _ in 0..passes {
-            let registered = match deform_atlas(atlas, &start, sampler, step, coarse, progress) {
-                Ok(registered) => registered,
-                Err(e) => {
-                    progress.log(&format!(
-                        "registering the atlas to place it again failed ({e}); registering from the placement before"
-                    ));
-                    break;
-                }
-            };
-            let Some(placement) =
-                placement_from_registration(atlas, &bones, &registered.deform.positions)
-            else {
-                progress.log(
-                    "the registered ossicles' similarity is degenerate or out of the ossicles' sizes; registering from the placement before",
-                );
+    let deform = DeformConfig {
+        probe_eardrum: false,
+        ..settings.deform.clone()
+    };
+    let refine = RefineConfig {
+        enabled: false,
+        ..settings.refine.clone()
+    };
+    let coarse = DeformSettings {
+        articulate: settings.articulate,
+        deform: &deform,
+        refine: &refine,
+    };
+    let bones = bone_nodes(atlas);
+    for _ in 0..passes {
+        let registered = match deform_atlas(atlas, &start, sampler, step, coarse, progress) {
+            Ok(registered) => registered,
+            Err(e) => {
+                progress.log(&format!(
+                    "registering the atlas to place it again failed ({e}); registering from the placement before"
+                ));
                 break;
-            };
-            progress.log(&format!(
-                "atlas placed again at scale {:.3} (the registered ossicles' similarity)",
-                placement.scale
-            ));
-            start = place(atlas, &placement);
-            scales.push(placement.scale);
-        }
+            }
+        };
+        let Some(placement) =
+            placement_from_registration(atlas, &bones, &registered.deform.positions)
+        else {
+            progress.log(
+                "the registered ossicles' similarity is degenerate or out of the ossicles' sizes; registering from the placement before",
+            );
+            break;
+        };
+        progress.log(&format!(
+            "atlas placed again at scale {:.3} (the registered ossicles' similarity)",
+            placement.scale
+        ));
+        start = place(atlas, &placement);
+        scales.push(placement.scale);
     }
     let seconds = clock.elapsed().as_secs_f64();
     let mut registered = deform_atlas(atlas, &start, sampler, step, settings, progress)?;
