@@ -18,7 +18,7 @@ use otoatlas::phantom::imaging::{Grid, ImagingParams, render};
 use otoatlas::progress::Silent;
 use otoatlas::register::DeformSettings;
 use otoatlas::register::deform::{
-    DeformConfig, ProbeConfig, ProbeKind, ProbeTriangle, deform, probe,
+    DeformConfig, ProbeConfig, ProbeKind, ProbeTriangle, Steps, deform, probe,
 };
 use otoatlas::register::refine::{RefineStop, refine};
 
@@ -77,7 +77,17 @@ fn a_shrunken_shifted_block_deforms_onto_the_imaged_block() {
         .distances;
 
     let floors = ElementFloors::new(&mesh.tets, &nodes, &nodes, REGISTRATION_SHAPE_QUALITY);
-    let result = deform(&model, &floors, &probes, &sampler, 0.2, &cfg, &Silent).unwrap();
+    let result = deform(
+        &model,
+        &floors,
+        &probes,
+        &sampler,
+        0.2,
+        &cfg,
+        Steps::Newton,
+        &Silent,
+    )
+    .unwrap();
     let after = compare(&surface(&result.positions), &truth, &options)
         .unwrap()
         .distances;
@@ -186,6 +196,7 @@ fn the_surface_level_moves_a_stretched_block_onto_the_imaged_block() {
                 articulate: &config.articulate,
                 deform: &config.deform,
                 refine: &config.refine,
+                steps: Steps::Newton,
             },
         );
         let after = compare(&surface(&x), &truth, &options).unwrap().distances;

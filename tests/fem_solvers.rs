@@ -157,6 +157,71 @@ fn large_spring_pull_converges_without_inversion() {
     assert!(x[3].z > 1.5, "the apex must follow the spring a long way");
 }
 
+/// A solve that stops at balance (residual 1e-6 of the first) ends at the equilibrium the
+/// update test finds, in fewer iterations, and says how far from balance it stopped.
+#[test]
+fn balance_ends_the_solve_at_the_same_equilibrium() {
+    let (rest, model) = unit_tet();
+    let fixed = || FixedDofs::from_nodes(4, &[0, 1, 2]).unwrap();
+    let spring = Spring {
+        node: 3,
+        target: Point3::new(0.4, 0.3, 3.0),
+        stiffness: 500.0,
+    };
+    let mut tight = rest.clone();
+    let full = StaticSolver::new(&model, fixed())
+        .unwrap()
+        .solve_with_springs(&mut tight, &[spring], &StaticOptions::default())
+        .unwrap();
+    let options = StaticOptions {
+        balanced_below: 1e-6,
+        ..StaticOptions::default()
+    };
+    let mut x = rest.clone();
+    let balanced = StaticSolver::new(&model, fixed())
+        .unwrap()
+        .solve_with_springs(&mut x, &[spring], &options)
+        .unwrap();
+    println!(
+        "update test: {full:?}\nbalance: {balanced:?}, apex {:?}",
+        x[3]
+    );
+    assert!(balanced.iterations < full.iterations);
+    assert!((x[3] - tight[3]).norm() <= 1e-5 * (tight[3] - rest[3]).norm());
+    assert!(balanced.relative_residual < 1e-5);
+}
+
+/// Where the guard keeps a spring from its target, each step is halved and the residual
+/// creeps: with a stall fraction the solve ends after a few iterations, not at the limit,
+/// and still returns an admissible state.
+#[test]
+fn a_stalled_solve_ends_early_and_admissible() {
+    let (rest, model) = unit_tet();
+    let fixed = FixedDofs::from_nodes(4, &[0, 1, 2]).unwrap();
+    let spring = Spring {
+        node: 3,
+        target: Point3::new(0.2, 0.2, -3.0),
+        stiffness: 1e6,
+    };
+    let options = StaticOptions {
+        stalled_below: 0.05,
+        ..StaticOptions::default()
+    };
+    let mut x = rest.clone();
+    let result = StaticSolver::new(&model, fixed)
+        .unwrap()
+        .solve_with_springs(&mut x, &[spring], &options);
+    println!("stalled: {result:?}, apex {:?}", x[3]);
+    match result {
+        Err(FemError::NotConverged { iterations, .. }) => {
+            assert!(iterations < options.max_iterations)
+        }
+        other => panic!("expected NotConverged, got {other:?}"),
+    }
+    assert!(signed_volume(&x) > 0.0, "returned an inverted state");
+    assert!(x[3].z < 0.5, "the apex must have moved towards the target");
+}
+
 #[test]
 fn pull_through_the_base_never_inverts() {
     let (rest, model) = unit_tet();

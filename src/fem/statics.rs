@@ -22,6 +22,14 @@
 //! reuse the last factorisation also carries over to the next solve when its tangent has the
 //! same diagonal (shift and springs) and pressure terms: the next load increment starts
 //! where the last one ended, at the same tangent.
+//!
+//! Balance and stall (`StaticOptions::balanced_below`, `stalled_below`, off by default), for
+//! solves that only need the loads met: the solve is converged, without a further step, once
+//! the residual norm has fallen to that fraction of the first iteration's (the warped tangent
+//! has no stress stiffness, so parts no load holds drift by whole steps at a negligible
+//! residual and the update test alone never passes); and it ends, not converged, once an
+//! iteration lowered the residual by less than the stall fraction (the inversion guard halving
+//! every step).
 
 use nalgebra::{Point3, Vector3};
 
@@ -71,6 +79,16 @@ pub struct StaticOptions {
     /// of the previous iteration's keeps the last factorisation; 0 (the default) assembles and
     /// factorises at every iteration.
     pub reuse_tangent_below: f64,
+    /// Balance (module doc): converged, before any further step, once the residual norm is
+    /// at most this fraction of the first iteration's; 0 (the default) judges on the update
+    /// alone. For loads that are met long before the nodes stop moving: with no stress
+    /// stiffness, parts no load holds (a membrane without springs, out of plane) drift by
+    /// tenths of a millimetre per iteration at a residual 1e-5 of the first.
+    pub balanced_below: f64,
+    /// Stall (module doc): the solve ends, not converged, when an iteration's residual norm
+    /// is above (1 − this) times the previous one's; 0 (the default) never. For loads the
+    /// inversion guard keeps from being met: each step is halved and the residual creeps.
+    pub stalled_below: f64,
 }
 
 impl Default for StaticOptions {
@@ -81,6 +99,8 @@ impl Default for StaticOptions {
             max_halvings: 30,
             tangent_shift: 0.0,
             reuse_tangent_below: 0.0,
+            balanced_below: 0.0,
+            stalled_below: 0.0,
         }
     }
 }
@@ -242,9 +262,35 @@ impl<'m> StaticSolver<'m> {
         let mut previous_residual = f64::INFINITY;
         let mut max_update = f64::INFINITY;
         let mut relative_residual = f64::INFINITY;
+        let mut first_residual = None;
         for iteration in 1..=options.max_iterations {
-            self.residual(x, loads, pressure)?;
+            let load = self.residual(x, loads, pressure)?;
             let residual = self.rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
+            let first = *first_residual.get_or_insert(residual);
+            if iteration > 1
+                && options.balanced_below > 0.0
+                && residual <= options.balanced_below * first
+            {
+                return Ok(self.report(
+                    iteration - 1,
+                    factorisations,
+                    max_update,
+                    halvings,
+                    residual / load.max(f64::MIN_POSITIVE),
+                ));
+            }
+            if iteration > 1
+                && options.stalled_below > 0.0
+                && residual > (1.0 - options.stalled_below) * previous_residual
+            {
+                return Err(FemError::NotConverged {
+                    iterations: iteration - 1,
+                    max_update,
+                    tolerance: options.tolerance_mm,
+                    relative_residual,
+                    residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
+                });
+            }
             let reuse = (factorisations > 0 || carried)
                 && options.reuse_tangent_below > 0.0
                 && residual <= options.reuse_tangent_below * previous_residual;
@@ -267,19 +313,13 @@ impl<'m> StaticSolver<'m> {
                 .residual_tolerance
                 .is_none_or(|t| relative_residual <= t)
             {
-                let max_residual = self
-                    .rhs
-                    .chunks_exact(3)
-                    .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
-                    .fold(0.0, f64::max);
-                return Ok(StaticReport {
-                    iterations: iteration,
+                return Ok(self.report(
+                    iteration,
                     factorisations,
-                    max_update_mm: max_update,
+                    max_update,
                     halvings,
-                    max_residual,
                     relative_residual,
-                });
+                ));
             }
         }
         Err(FemError::NotConverged {
@@ -289,6 +329,30 @@ impl<'m> StaticSolver<'m> {
             relative_residual,
             residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
         })
+    }
+
+    /// The report of a converged solve; `self.rhs` holds the residual at the returned state.
+    fn report(
+        &self,
+        iterations: usize,
+        factorisations: usize,
+        max_update_mm: f64,
+        halvings: usize,
+        relative_residual: f64,
+    ) -> StaticReport {
+        let max_residual = self
+            .rhs
+            .chunks_exact(3)
+            .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
+            .fold(0.0, f64::max);
+        StaticReport {
+            iterations,
+            factorisations,
+            max_update_mm,
+            halvings,
+            max_residual,
+            relative_residual,
+        }
     }
 
     /// Assembles the tangent at `x` (state already updated to `x`), with the membranes'

@@ -14,6 +14,7 @@ use crate::pipeline::Error;
 use crate::progress::Reporter;
 use crate::register::DeformSettings;
 use crate::register::auto_landmarks::{Proposal, ProposeInput, SideSource, propose_landmarks};
+use crate::register::deform::Steps;
 
 /// Proposes the landmarks of `image` with the atlas at `atlas_dir` (the embedded one when
 /// `None`), as `config` registers; `side` (`--side`) overrides the image's DICOM laterality,
@@ -48,6 +49,7 @@ pub fn propose(
             articulate: &config.articulate,
             deform: &config.deform,
             refine: &config.refine,
+            steps: Steps::Newton,
         },
         step,
     };

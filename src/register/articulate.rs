@@ -335,6 +335,13 @@ pub fn articulate(
 /// placed atlas): every bone node pulled to its target by a stiff spring, the connective
 /// tissue following elastically, and no element ever inverted (where a joint would be crushed
 /// the solver stops at the last admissible state). Records the largest gap left to a target.
+///
+/// The solve ends once the residual is a thousandth of its first (parts that no spring holds
+/// would otherwise drift by 0.05-0.1 mm per iteration at a residual 1e-5 of the first, until
+/// the iteration limit), or when the residual falls by less
+/// than 5 % in an iteration (a joint the targets would crush halves every step). On the
+/// development phantoms this takes the carry from 8 factorisations to 1-5, 0.15 s to
+/// 0.02-0.08 s, and moves no chain MASD by more than 0.001 mm.
 pub fn articulated_shape(
     model: &FemModel,
     targets: &[Option<Point3<f64>>],
@@ -359,6 +366,8 @@ pub fn articulated_shape(
         max_iterations: 8,
         max_halvings: 12,
         tangent_shift: 1e-6 * modulus_pa,
+        balanced_below: 1e-3,
+        stalled_below: 0.05,
         ..StaticOptions::default()
     };
     match solver.solve_with_springs(&mut x, &springs, &options) {

@@ -174,7 +174,16 @@ pub fn deform_atlas(
             &rest,
             REGISTRATION_SHAPE_QUALITY,
         );
-        let level = deform(&model, &floors, &probes, sampler, step, cfg, progress)?;
+        let level = deform(
+            &model,
+            &floors,
+            &probes,
+            sampler,
+            step,
+            cfg,
+            settings.steps,
+            progress,
+        )?;
         // a later level may not flatten an element (`mesh::quality`'s floors): the FEM only
         // keeps a tenth of each element's volume at its own rest shape, and each level
         // regularises from the last one's shape

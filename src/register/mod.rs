@@ -24,4 +24,6 @@ pub struct DeformSettings<'a> {
     pub articulate: &'a articulate::ArticulateConfig,
     pub deform: &'a deform::DeformConfig,
     pub refine: &'a refine::RefineConfig,
+    /// How the FEM levels' solves step (`deform::Steps`).
+    pub steps: deform::Steps,
 }

@@ -16,7 +16,7 @@ use nalgebra::Point3;
 use super::DeformSettings;
 use super::atlas_fit::{Registered, deform_atlas, place};
 use super::chain_search::SCALE_RANGE;
-use super::deform::{DeformConfig, DeformError};
+use super::deform::{DeformConfig, DeformError, Steps};
 use super::refine::RefineConfig;
 use super::rigid::{SimilarityTransform, fit_similarity};
 use crate::atlas::{Atlas, Part};
@@ -83,6 +83,7 @@ pub fn deform_placed_again(
         articulate: settings.articulate,
         deform: &deform,
         refine: &refine,
+        steps: Steps::Chord,
     };
     let bones = bone_nodes(atlas);
     for _ in 0..passes {

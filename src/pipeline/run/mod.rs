@@ -35,7 +35,7 @@ use crate::pipeline::mechanics::validate_registered;
 use crate::progress::Reporter;
 use crate::register::DeformSettings;
 use crate::register::atlas_fit::{DeformRecord, LevelSeconds, fit_landmarks, place};
-use crate::register::deform::DeformStatus;
+use crate::register::deform::{DeformStatus, Steps};
 use crate::register::landmarks::{LandmarkWarning, check_against_registration};
 use crate::register::placement::deform_placed_again;
 use crate::register::rigid::{RigidFit, RigidRecord};
@@ -402,6 +402,7 @@ fn deform(
             articulate: &config.articulate,
             deform: &config.deform,
             refine: &config.refine,
+            steps: Steps::Newton,
         };
         let registered =
             deform_placed_again(atlas, rigid_nodes, sampler, step, settings, progress)?;

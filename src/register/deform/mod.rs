@@ -92,6 +92,19 @@ fn default_placement_passes() -> usize {
     1
 }
 
+/// How each outer iteration's FEM solve steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Steps {
+    /// A tangent assembled and factorised at every Newton iteration.
+    Newton,
+    /// The last factorisation kept while each iteration takes the residual to 60 % of the last
+    /// or less (chord steps; `StaticOptions::reuse_tangent_below`): the same equilibrium but another path,
+    /// and the solves are stopped short of it, so the registration differs by a few
+    /// thousandths of a millimetre; a level costs about half. For registrations used only to
+    /// place the atlas (`placement::deform_placed_again`).
+    Chord,
+}
+
 /// A surface triangle to probe: three FEM nodes (counter-clockwise seen from outside).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProbeTriangle {
@@ -202,6 +215,7 @@ pub enum DeformError {
 /// Runs the stage on `model`, whose rest shape is the rigidly placed atlas; returns the
 /// registered node positions. `step` is the probe step (the smallest voxel spacing, mm); no
 /// step leaves a tetrahedron below its `floors`.
+#[allow(clippy::too_many_arguments)]
 pub fn deform(
     model: &FemModel,
     floors: &ElementFloors,
@@ -209,6 +223,7 @@ pub fn deform(
     sampler: &Sampler,
     step: f64,
     cfg: &DeformConfig,
+    steps: Steps,
     progress: &dyn Reporter,
 ) -> Result<DeformResult, DeformError> {
     let n = model.node_count();
@@ -225,6 +240,10 @@ pub fn deform(
         max_halvings: 12,
         // keeps each linear solve definite where no spring acts (see StaticOptions)
         tangent_shift: 1e-6 * cfg.regularisation_modulus_pa,
+        reuse_tangent_below: match steps {
+            Steps::Newton => 0.0,
+            Steps::Chord => 0.6,
+        },
         ..StaticOptions::default()
     };
     let mut status = DeformStatus::MaxIterations;
