@@ -342,7 +342,11 @@ pub fn deform(
             break;
         }
     }
-    bar.finish(&format!("{} iterations, {:?}", history.len(), status));
+    let how = match &status {
+        DeformStatus::Converged { reason, .. } => format!("converged ({})", reason.name()),
+        other => other.name().replace('_', " "),
+    };
+    bar.finish(&format!("{} iterations, {how}", history.len()));
     Ok(DeformResult {
         positions: x,
         history,
