@@ -14,8 +14,13 @@
 //! linear in x, not corotational).
 //!
 //! On a flat hinge R·n̂ = −δθ h_A h_B/(h_A + h_B), so Volino's normal stiffness is
-//! ⅔ S |e|/(h_A + h_B) per rad² against the discrete shell's D|e|²/(A₁ + A₂) = 2D|e|/(h_A + h_B)
-//! (`fem::bending`): S = 3D gives otoatlas's hinge stiffness exactly (tested below).
+//! ⅔ S |e|/(h_A + h_B) per rad² against the discrete shell's D|e|²/(A₁ + A₂) = 2D|e|/(h_A + h_B):
+//! S = 3D gives the discrete-shell hinge exactly (tested below). otoatlas's own bending
+//! (`fem::bending`, since 2026-11-27) couples the three hinges of each triangle so that it is
+//! consistent on irregular meshes; SOFA has no such component, so the scene keeps the hinges
+//! alone. On the default atlas the hinges alone gave a transfer function at most 0.21 dB and
+//! 0.7° from the coupled bending's and a static asymmetry 1.1 % larger (docs/mechanics.md,
+//! "The eardrum: a curved shell").
 //!
 //! One component has one S, the eardrum several rigidities (pars tensa, pars flaccida), so the
 //! scene stacks layers: with the distinct rigidities D₁ < D₂ < … of the triangles, layer k acts

@@ -28,7 +28,13 @@ pub struct SparsePattern {
     tet_ranks: Vec<u32>,
     membrane_ranks: Vec<u32>,
     hinge_ranks: Vec<u32>,
+    /// Per hinge coupling, the rank of each (node of the first hinge, node of the second)
+    /// pair, 4 × 4 in order; `SAME_NODE` where the two are one node.
+    coupling_ranks: Vec<u32>,
 }
+
+/// A coupling's node pair that is one node (its block is diagonal).
+const SAME_NODE: u32 = u32::MAX;
 
 /// Local node pairs a < b of an N-node element, in a fixed order.
 fn pairs<const N: usize>() -> impl Iterator<Item = (usize, usize)> {
@@ -50,11 +56,20 @@ impl SparsePattern {
         let mut edges = Vec::new();
         let tet_pairs = || node_pairs(model.tets.iter().map(|e| &e.nodes));
         let membrane_pairs = || node_pairs(model.membranes.iter().map(|e| &e.nodes));
-        let hinge_pairs = || node_pairs(model.hinges.iter().map(|h| &h.nodes));
+        let hinges = &model.bending.hinges;
+        let hinge_pairs = || node_pairs(hinges.iter().map(|h| &h.nodes));
+        let coupling_pairs = || {
+            model.bending.couplings.iter().flat_map(|c| {
+                let [e, f] = c.hinges.map(|h| hinges[h as usize].nodes);
+                e.into_iter()
+                    .flat_map(move |p| f.into_iter().map(move |q| (p, q)))
+            })
+        };
         edges.extend(
             tet_pairs()
                 .chain(membrane_pairs())
                 .chain(hinge_pairs())
+                .chain(coupling_pairs().filter(|(p, q)| p != q))
                 .map(|(p, q)| (p.min(q), p.max(q))),
         );
         edges.sort_unstable();
@@ -92,11 +107,15 @@ impl SparsePattern {
         let tet_ranks = ranks(&mut tet_pairs());
         let membrane_ranks = ranks(&mut membrane_pairs());
         let hinge_ranks = ranks(&mut hinge_pairs());
+        let coupling_ranks = coupling_pairs()
+            .map(|(p, q)| if p == q { SAME_NODE } else { rank(p, q) })
+            .collect();
         SparsePattern {
             symbolic,
             tet_ranks,
             membrane_ranks,
             hinge_ranks,
+            coupling_ranks,
         }
     }
 
@@ -158,7 +177,12 @@ impl SparsePattern {
             (
                 "hinge rank table",
                 self.hinge_ranks.len(),
-                6 * model.hinges.len(),
+                6 * model.bending.hinges.len(),
+            ),
+            (
+                "hinge coupling rank table",
+                self.coupling_ranks.len(),
+                16 * model.bending.couplings.len(),
             ),
         ] {
             if expected != found {
@@ -186,6 +210,7 @@ impl SparsePattern {
             &mut sink,
         );
         for ((h, grads), ranks) in model
+            .bending
             .hinges
             .iter()
             .zip(&state.hinges.gradients)
@@ -203,6 +228,29 @@ impl SparsePattern {
                     (q, p, grads[b], grads[a])
                 };
                 sink.add_off_diagonal(hi, lo, *rank as usize, &(gh * gl.transpose() * k));
+            }
+        }
+        let hinges = &model.bending.hinges;
+        let gradients = &state.hinges.gradients;
+        for (c, ranks) in model
+            .bending
+            .couplings
+            .iter()
+            .zip(self.coupling_ranks.chunks_exact(16))
+        {
+            let k = c.stiffness * scale;
+            let [e, f] = c.hinges.map(|h| h as usize);
+            let pairs = (0..4).flat_map(|a| (0..4).map(move |b| (a, b)));
+            for ((a, b), &rank) in pairs.zip(ranks) {
+                let (p, q) = (hinges[e].nodes[a] as usize, hinges[f].nodes[b] as usize);
+                let (ge, gf) = (gradients[e][a], gradients[f][b]);
+                if rank == SAME_NODE {
+                    sink.add_diagonal(p, &((ge * gf.transpose() + gf * ge.transpose()) * k));
+                } else if p > q {
+                    sink.add_off_diagonal(p, q, rank as usize, &(ge * gf.transpose() * k));
+                } else {
+                    sink.add_off_diagonal(q, p, rank as usize, &(gf * ge.transpose() * k));
+                }
             }
         }
         if let Some(diag) = node_diagonal {

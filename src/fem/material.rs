@@ -48,6 +48,11 @@ impl Lame {
     pub(crate) fn flexural_rigidity(&self, h: f64) -> f64 {
         (self.lambda + 2.0 * self.mu) * h.powi(3) / 12.0
     }
+
+    /// Poisson's ratio ν = λ/(λ + 2μ) of this plane-stress pair.
+    pub(crate) fn plane_stress_poisson_ratio(&self) -> f64 {
+        self.lambda / (self.lambda + 2.0 * self.mu)
+    }
 }
 
 fn check(

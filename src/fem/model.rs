@@ -7,7 +7,7 @@
 
 use nalgebra::Point3;
 
-use super::bending::{BendingHinge, hinges};
+use super::bending::{Bending, bending};
 use super::element::CorotElement;
 use super::error::FemError;
 use super::material::{MembraneMaterial, TetMaterial};
@@ -47,7 +47,7 @@ pub struct FemModel {
     rest: Vec<Point3<f64>>,
     pub(crate) tets: Vec<TetElement>,
     pub(crate) membranes: Vec<MembraneElement>,
-    pub(crate) hinges: Vec<BendingHinge>,
+    pub(crate) bending: Bending,
     masses: Vec<f64>,
 }
 
@@ -142,23 +142,23 @@ impl FemModel {
             let m = membranes.materials[mi as usize].density * t.measure / 3.0;
             t.nodes.iter().for_each(|&n| masses[n as usize] += m);
         }
-        let rigidity = |t: usize| {
-            membranes.materials[membranes.material_index[t] as usize].flexural_rigidity()
+        let plate = |t: usize| {
+            let m = &membranes.materials[membranes.material_index[t] as usize];
+            (m.flexural_rigidity(), m.poisson_ratio)
         };
-        let hinges = hinges(&tri_elems, rigidity, rest);
+        let bending = bending(&tri_elems, plate, rest);
         Ok(FemModel {
             rest: rest.to_vec(),
             tets: tet_elems,
             membranes: tri_elems,
-            hinges,
+            bending,
             masses,
         })
     }
 
-    /// The same model with every membrane bending at one flexural thickness: one
-    /// discrete-shell hinge per interior edge (`bending` module), with the flexural rigidity
-    /// D = E h_b³/(12(1 − ν²)) of each triangle's material at `bending_thickness_mm` (mm),
-    /// averaged over the hinge's two triangles. It replaces the hinges the materials' own
+    /// The same model with every membrane bending at one flexural thickness (`bending`
+    /// module), each triangle with the flexural rigidity D = E h_b³/(12(1 − ν²)) of its
+    /// material at `bending_thickness_mm` (mm). It replaces the bending the materials' own
     /// `bending_thickness` gave (a what-if; see `MembraneMaterial`).
     pub fn with_membrane_bending(mut self, bending_thickness_mm: f64) -> Result<Self, FemError> {
         if !(bending_thickness_mm.is_finite() && bending_thickness_mm > 0.0) {
@@ -169,9 +169,15 @@ impl FemModel {
             });
         }
         let membranes = &self.membranes;
-        self.hinges = hinges(
+        self.bending = bending(
             membranes,
-            |t| membranes[t].lame.flexural_rigidity(bending_thickness_mm),
+            |t| {
+                let lame = &membranes[t].lame;
+                (
+                    lame.flexural_rigidity(bending_thickness_mm),
+                    lame.plane_stress_poisson_ratio(),
+                )
+            },
             &self.rest,
         );
         Ok(self)
@@ -179,7 +185,7 @@ impl FemModel {
 
     /// Number of bending hinges (interior membrane edges between bending triangles).
     pub fn hinge_count(&self) -> usize {
-        self.hinges.len()
+        self.bending.hinges.len()
     }
 
     /// Number of nodes.

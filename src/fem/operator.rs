@@ -27,6 +27,9 @@ pub struct StepOperator {
     tension: Vec<Matrix3<f64>>,
     /// The vector with its fixed DOFs zeroed (scratch of `apply`).
     free: Vec<f64>,
+    /// Each hinge's angle change along the vector, and its moment (scratch of `apply`).
+    hinge_rates: Vec<f64>,
+    hinge_moments: Vec<f64>,
 }
 
 /// Adds `product(k, p restricted to the nodes of cell k)` of every cell to `y` at the
@@ -71,6 +74,8 @@ impl StepOperator {
         StepOperator {
             tension: vec![Matrix3::zeros(); model.membranes.len()],
             free: vec![0.0; model.dof_count()],
+            hinge_rates: vec![0.0; model.bending.hinges.len()],
+            hinge_moments: vec![0.0; model.bending.hinges.len()],
         }
     }
 
@@ -128,6 +133,11 @@ impl StepOperator {
                 self.tension.len(),
             ),
             ("operator DOFs", model.dof_count(), self.free.len()),
+            (
+                "operator hinges",
+                model.bending.hinges.len(),
+                self.hinge_rates.len(),
+            ),
         ] {
             if expected != found {
                 return Err(FemError::LengthMismatch {
@@ -167,12 +177,31 @@ impl StepOperator {
             let kt = e.gradient(local) * tension[k] * scale;
             e.grads.map(|g| kt * g)
         });
-        let (hinges, gradients) = (&model.hinges, &state.hinges.gradients);
-        add_element_products(hinges.iter().map(|h| &h.nodes), free, y, |k, local| {
-            let grads = &gradients[k];
-            let along: f64 = grads.iter().zip(local).map(|(g, p)| g.dot(p)).sum();
-            grads.map(|g| g * (hinges[k].stiffness * scale * along))
-        });
+        // bending: the angles' rates ∇θ·p, their moments K (∇θ·p), back through ∇θ
+        let (hinges, gradients) = (&model.bending.hinges, &state.hinges.gradients);
+        for ((rate, h), grads) in self.hinge_rates.iter_mut().zip(hinges).zip(gradients) {
+            *rate = h
+                .nodes
+                .iter()
+                .zip(grads)
+                .map(|(v, g)| {
+                    let i = 3 * *v as usize;
+                    g.dot(&Vector3::new(free[i], free[i + 1], free[i + 2]))
+                })
+                .sum();
+        }
+        model
+            .bending
+            .moments(&self.hinge_rates, &mut self.hinge_moments);
+        for ((h, grads), m) in hinges.iter().zip(gradients).zip(&self.hinge_moments) {
+            for (v, g) in h.nodes.iter().zip(grads) {
+                let i = 3 * *v as usize;
+                let f = g * (m * scale);
+                y[i] += f.x;
+                y[i + 1] += f.y;
+                y[i + 2] += f.z;
+            }
+        }
         for (dof, (y, p)) in y.iter_mut().zip(p).enumerate() {
             if fixed.is_fixed(dof) {
                 *y = *p;

@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use super::bending::{BendingHinge, HingeVectors};
+use super::bending::{Bending, HingeVectors};
 use super::element::CorotElement;
 use super::error::{ElementId, FemError};
 use super::membrane::{membrane_admissible, membrane_rotation};
@@ -30,6 +30,8 @@ pub struct CorotationalState {
 #[derive(Debug, Clone)]
 pub(crate) struct HingeStates {
     pub gradients: Vec<HingeVectors>,
+    deltas: Vec<f64>,
+    moments: Vec<f64>,
     forces: Vec<HingeVectors>,
 }
 
@@ -37,24 +39,30 @@ impl HingeStates {
     fn new(count: usize) -> Self {
         HingeStates {
             gradients: vec![[Vector3::zeros(); 4]; count],
+            deltas: vec![0.0; count],
+            moments: vec![0.0; count],
             forces: vec![[Vector3::zeros(); 4]; count],
         }
     }
 
-    /// A collapsed triangle gives no force (the membrane state reports it).
-    fn update(&mut self, hinges: &[BendingHinge], x: &[Point3<f64>]) {
-        (&mut self.gradients, &mut self.forces, hinges)
+    /// Angle changes and gradients, then moments m = K θ̃ and forces −m ∇θ; a collapsed
+    /// triangle's hinge counts as unbent (the membrane state reports it).
+    fn update(&mut self, bending: &Bending, x: &[Point3<f64>]) {
+        (&mut self.gradients, &mut self.deltas, &bending.hinges)
             .into_par_iter()
             .with_min_len(PAR_CHUNK)
-            .for_each(|(g, f, h)| {
-                (*f, *g) = h
-                    .forces(x)
-                    .unwrap_or(([Vector3::zeros(); 4], [Vector3::zeros(); 4]));
+            .for_each(|(g, d, h)| {
+                (*d, *g) = h.angle_change(x).unwrap_or((0.0, [Vector3::zeros(); 4]));
             });
+        bending.moments(&self.deltas, &mut self.moments);
+        (&mut self.forces, &self.gradients, &self.moments)
+            .into_par_iter()
+            .with_min_len(PAR_CHUNK)
+            .for_each(|(f, g, m)| *f = g.map(|g| g * -m));
     }
 
-    fn gather(&self, hinges: &[BendingHinge], out: &mut [Vector3<f64>]) {
-        gather(hinges.iter().map(|h| &h.nodes), &self.forces, out);
+    fn gather(&self, bending: &Bending, out: &mut [Vector3<f64>]) {
+        gather(bending.hinges.iter().map(|h| &h.nodes), &self.forces, out);
     }
 }
 
@@ -121,7 +129,7 @@ impl CorotationalState {
         CorotationalState {
             tets: ElementStates::new(model.tets.len()),
             membranes: ElementStates::new(model.membranes.len()),
-            hinges: HingeStates::new(model.hinges.len()),
+            hinges: HingeStates::new(model.bending.hinges.len()),
             failed: Vec::new(),
         }
     }
@@ -133,7 +141,7 @@ impl CorotationalState {
         self.tets.update(&model.tets, x, |_, f| tet_rotation(f));
         self.membranes
             .update(&model.membranes, x, |e, f| membrane_rotation(e, x, f));
-        self.hinges.update(&model.hinges, x);
+        self.hinges.update(&model.bending, x);
         self.failed.clear();
         let tets = self.tets.admissible.iter().enumerate();
         self.failed
@@ -167,7 +175,7 @@ impl CorotationalState {
         }
         self.tets.gather(&model.tets, out);
         self.membranes.gather(&model.membranes, out);
-        self.hinges.gather(&model.hinges, out);
+        self.hinges.gather(&model.bending, out);
         Ok(())
     }
 
@@ -186,7 +194,7 @@ impl CorotationalState {
             ),
             (
                 "state bending hinges",
-                model.hinges.len(),
+                model.bending.hinges.len(),
                 self.hinges.gradients.len(),
             ),
         ] {
