@@ -60,6 +60,7 @@ fn box_with_membrane_lid() -> (BoxMesh, FemModel) {
     .with_membrane_bending(0.05)
     .unwrap();
     assert!(model.hinge_count() > 0);
+    assert!(model.hinge_coupling_count() > 0);
     (mesh, model)
 }
 

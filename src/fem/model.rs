@@ -188,6 +188,12 @@ impl FemModel {
         self.bending.hinges.len()
     }
 
+    /// Number of couplings between bending hinges (pairs of hinges of one triangle whose
+    /// patch gives them a joint stiffness; `bending` module).
+    pub fn hinge_coupling_count(&self) -> usize {
+        self.bending.couplings.len()
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.rest.len()
