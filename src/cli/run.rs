@@ -13,6 +13,7 @@ use crate::ear::Side;
 use crate::mechanics::Condition;
 use crate::pipeline::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::progress::Reporter;
+use crate::register::deform::DeformStatus;
 
 /// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
 /// segmentation), export; then validate the package's mechanics against the atlas
@@ -93,7 +94,7 @@ pub fn run(
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}){}, FEM levels {} after {} iterations{}",
+        "{}: {} ear, rigid landmark RMS {:.3} mm (scale {:.3}){}, FEM levels {}{}",
         case.id,
         m.side.as_str(),
         m.rigid.rms_mm,
@@ -103,8 +104,19 @@ pub fn run(
             .last()
             .map(|s| format!(", placed again at scale {s:.3}"))
             .unwrap_or_default(),
-        m.deform.status.name(),
-        m.deform.iterations,
+        match &m.deform.status {
+            DeformStatus::Converged { reason, .. } => format!(
+                "converged ({}) after {} iterations",
+                reason.name(),
+                m.deform.iterations
+            ),
+            DeformStatus::MaxIterations =>
+                format!("{} iterations (their limit)", m.deform.iterations),
+            DeformStatus::InversionGuard { .. } => format!(
+                "stopped by the inversion guard after {} iterations",
+                m.deform.iterations
+            ),
+        },
         match &m.deform.refinement {
             Some(r) => format!(
                 ", surface level {} after {} rounds{}",
