@@ -13,7 +13,6 @@ use crate::ear::Side;
 use crate::mechanics::Condition;
 use crate::pipeline::{AutoLandmarks, Case, RunOptions, Stage, run_case};
 use crate::progress::Reporter;
-use crate::register::deform::DeformStatus;
 
 /// Register the atlas onto a case: ingest, landmarks, rigid, deform, score (with a
 /// segmentation), export; then validate the package's mechanics against the atlas
@@ -104,19 +103,7 @@ pub fn run(
             .last()
             .map(|s| format!(", placed again at scale {s:.3}"))
             .unwrap_or_default(),
-        match &m.deform.status {
-            DeformStatus::Converged { reason, .. } => format!(
-                "converged ({}) after {} iterations",
-                reason.name(),
-                m.deform.iterations
-            ),
-            DeformStatus::MaxIterations =>
-                format!("{} iterations (their limit)", m.deform.iterations),
-            DeformStatus::InversionGuard { .. } => format!(
-                "stopped by the inversion guard after {} iterations",
-                m.deform.iterations
-            ),
-        },
+        m.deform.status.describe(m.deform.iterations),
         match &m.deform.refinement {
             Some(r) => format!(
                 ", surface level {} after {} rounds{}",

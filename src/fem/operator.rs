@@ -193,15 +193,10 @@ impl StepOperator {
         model
             .bending
             .moments(&self.hinge_rates, &mut self.hinge_moments);
-        for ((h, grads), m) in hinges.iter().zip(gradients).zip(&self.hinge_moments) {
-            for (v, g) in h.nodes.iter().zip(grads) {
-                let i = 3 * *v as usize;
-                let f = g * (m * scale);
-                y[i] += f.x;
-                y[i + 1] += f.y;
-                y[i + 2] += f.z;
-            }
-        }
+        let moments = &self.hinge_moments;
+        add_element_products(hinges.iter().map(|h| &h.nodes), free, y, |k, _| {
+            gradients[k].map(|g| g * (moments[k] * scale))
+        });
         for (dof, (y, p)) in y.iter_mut().zip(p).enumerate() {
             if fixed.is_fixed(dof) {
                 *y = *p;

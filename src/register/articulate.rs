@@ -338,8 +338,8 @@ pub fn articulate(
 ///
 /// The solve ends once the residual is a thousandth of its first (parts that no spring holds
 /// would otherwise drift by 0.05-0.1 mm per iteration at a residual 1e-5 of the first, until
-/// the iteration limit), or when the residual falls by less
-/// than 5 % in an iteration (a joint the targets would crush halves every step). On the
+/// the iteration limit), or when the residual falls by less than 5 % in an iteration (a joint
+/// the targets would crush halves every step). On the
 /// development phantoms this takes the carry from 8 factorisations to 1-5, 0.15 s to
 /// 0.02-0.08 s, and moves no chain MASD by more than 0.001 mm.
 pub fn articulated_shape(

@@ -180,6 +180,23 @@ impl DeformStatus {
             DeformStatus::InversionGuard { .. } => "inversion_guard",
         }
     }
+
+    /// How the FEM levels ended after `iterations`, for people (the progress line, `run`'s
+    /// summary): the iteration limit is the designed end when the surface level follows.
+    pub fn describe(&self, iterations: usize) -> String {
+        match self {
+            DeformStatus::Converged { reason, .. } => {
+                format!(
+                    "converged ({}) after {iterations} iterations",
+                    reason.name()
+                )
+            }
+            DeformStatus::MaxIterations => format!("{iterations} iterations (their limit)"),
+            DeformStatus::InversionGuard { .. } => {
+                format!("stopped by the inversion guard after {iterations} iterations")
+            }
+        }
+    }
 }
 
 /// The result of the deformable stage.
@@ -342,11 +359,7 @@ pub fn deform(
             break;
         }
     }
-    let how = match &status {
-        DeformStatus::Converged { reason, .. } => format!("converged ({})", reason.name()),
-        other => other.name().replace('_', " "),
-    };
-    bar.finish(&format!("{} iterations, {how}", history.len()));
+    bar.finish(&status.describe(history.len()));
     Ok(DeformResult {
         positions: x,
         history,
