@@ -5,25 +5,22 @@
 //!
 //! with K the rest stiffness (elements plus node springs), M the lumped masses, C the node
 //! blocks c n nᵀ of dashpots along a direction (g/s; `Dashpot`) and Rayleigh α, β as SOFA applies them (to the whole stiffness,
-//! springs included). The matrix is complex symmetric, not Hermitian, so it is factorised by
-//! faer's sparse LU (partial pivoting, the variant `fem::variant` picks; COLAMD ordering and
-//! symbolic analysis done once per model and reused at every frequency). Fixed DOFs are
-//! removed from the system (û = 0 there).
+//! springs included). The matrix is complex symmetric, not Hermitian; its ordering and
+//! symbolic analysis are done once per model and reused at every frequency
+//! (`fem::complex_symmetric`). Fixed DOFs are removed from the system (û = 0 there).
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
-use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
-use faer::{Conj, MatMut, Par, c64};
+use faer::c64;
+use faer::sparse::{SparseColMat, Triplet};
 use nalgebra::Vector3;
 
 use super::assembly::SparsePattern;
+use super::complex_symmetric::ComplexSymmetric;
 use super::dashpot::{Dashpot, check_dashpots};
 use super::dynamics::{Rayleigh, non_negative};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::state::CorotationalState;
-use super::variant;
 
 /// Complex amplitude of one node's displacement (mm), x, y, z.
 pub type ComplexDisplacement = [c64; 3];
@@ -46,7 +43,7 @@ pub struct HarmonicSolver {
     /// The same entries as (row, column, value) of the reduced system.
     pub(super) dashpot_entries: Vec<(usize, usize, f64)>,
     pub(super) rayleigh: Rayleigh,
-    pub(super) symbolic: SymbolicLu<usize>,
+    factoriser: ComplexSymmetric,
 }
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
@@ -148,8 +145,7 @@ impl HarmonicSolver {
                 }
             }
         }
-        let symbolic = factorize_symbolic_lu(s, variant::lu_params())
-            .map_err(|e| faer_error("harmonic symbolic LU", e))?;
+        let factoriser = ComplexSymmetric::analyse(s)?;
         Ok(HarmonicSolver {
             node_count: n,
             free,
@@ -159,7 +155,7 @@ impl HarmonicSolver {
             dashpot,
             dashpot_entries,
             rayleigh,
-            symbolic,
+            factoriser,
         })
     }
 
@@ -183,33 +179,7 @@ impl HarmonicSolver {
         for &(p, c) in &self.dashpot {
             values[p] += c64::new(0.0, omega * c);
         }
-        let par = Par::Seq;
-        let mut mem = MemBuffer::new(StackReq::any_of(&[
-            self.symbolic
-                .factorize_numeric_lu_scratch::<c64>(par, Default::default()),
-            self.symbolic.solve_in_place_scratch::<c64>(1, par),
-        ]));
-        let mut numeric = NumericLu::<usize, c64>::new();
-        let matrix = SparseColMatRef::new(self.stiffness.symbolic(), &values);
-        let lu = self
-            .symbolic
-            .factorize_numeric_lu(
-                &mut numeric,
-                matrix,
-                par,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .map_err(|e| faer_error("harmonic numeric LU", e))?;
-        let m = self.free.len();
-        body(&mut |rhs: &mut [c64]| {
-            lu.solve_in_place_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(rhs, m, 1),
-                par,
-                MemStack::new(&mut mem),
-            )
-        })
+        self.factoriser.with_factor(&values, body)
     }
 
     /// Number of unknowns (free DOFs).

@@ -2,16 +2,16 @@
 //! the full system (docs/fem.md, "Reduced-order sweep").
 //!
 //! A sweep solves [K(1 + iωβ) + iω(αM + C) − ω²M] û = F̂ at many ω. Factorising the complex
-//! matrix at each ω costs one complex sparse LU per frequency; instead, the sweep projects the
-//! system on a small real subspace V (Galerkin, Vᵀ A(ω) V q = Vᵀ F̂, û = V q) built by rational
-//! Krylov steps: at a real shift s (an angular frequency), B = K − s²M is factorised once
-//! (real LU, the solver's symbolic analysis reused) and V gains B⁻¹F̂, B⁻¹M v, B⁻¹M B⁻¹M v, …
-//! (the response's moments about s: the static response and the undamped modes near s). The
-//! first shift is 0; every reduced solution is then checked on the full system by its relative
-//! residual ‖F̂ − A(ω)û‖ / ‖F̂‖, and while one exceeds the tolerance a new shift is placed at
-//! the worst frequency. A frequency still above the tolerance after the last shift is solved
-//! directly by [`HarmonicSolver::solve`]. So every returned response satisfies the full system
-//! to the tolerance (or is the direct solution), whatever the subspace.
+//! matrix at each ω costs one sparse factorisation per frequency; instead, the sweep projects
+//! the system on a small real subspace V (Galerkin, Vᵀ A(ω) V q = Vᵀ F̂, û = V q) built from
+//! the response's Taylor coefficients about a few shift frequencies ω_s (one factorisation of
+//! A(ω_s) each, the solver's symbolic analysis reused; `HarmonicSolver::moments`), their real
+//! and imaginary parts orthonormalised. Every reduced solution is then checked on the full
+//! system by its relative residual ‖F̂ − A(ω)û‖ / ‖F̂‖; the first two shifts sit at a quarter
+//! and three quarters of the logarithmic range, and while a frequency exceeds the tolerance a
+//! new shift is placed at the worst one. A frequency still above the tolerance after the last
+//! shift is solved directly by [`HarmonicSolver::solve`]. So every returned response satisfies
+//! the full system to the tolerance (or is the direct solution), whatever the subspace.
 
 use faer::linalg::solvers::Solve;
 use faer::{Mat, c64};
@@ -52,7 +52,7 @@ pub struct SweepReport {
     pub basis_size: usize,
     /// The shifts (Hz), in the order they were placed.
     pub shifts_hz: Vec<f64>,
-    /// Frequencies solved directly (complex sparse LU) because the reduced model missed the
+    /// Frequencies solved directly (one factorisation each) because the reduced model missed the
     /// tolerance there.
     pub direct_solves: usize,
     /// Largest relative residual of the returned responses (0 where solved directly).

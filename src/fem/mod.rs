@@ -14,6 +14,7 @@
 mod assembly;
 pub(crate) mod bending;
 mod cholesky;
+mod complex_symmetric;
 mod dashpot;
 mod dynamics;
 mod element;

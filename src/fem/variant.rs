@@ -1,4 +1,4 @@
-//! Which variant of faer's sparse factorisations (Cholesky and LU) the FEM uses: supernodal,
+//! Which variant of faer's sparse factorisations (Cholesky, LBLᵀ and LU) the FEM uses: supernodal,
 //! or simplicial when the process has an address-space limit.
 //!
 //! faer's supernodal factorisations multiply dense blocks through `private-gemm-x86`, which
@@ -46,7 +46,23 @@ pub(crate) fn cholesky_params() -> CholeskySymbolicParams<'static> {
     }
 }
 
-/// Symbolic settings of a sparse LU factorisation.
+/// Whether supernodal factorisations may run in this process (no address-space limit).
+pub(crate) fn supernodal_allowed() -> bool {
+    *THRESHOLD != SupernodalThreshold::FORCE_SIMPLICIAL
+}
+
+/// Symbolic settings of a sparse Cholesky-structured factorisation that must be supernodal
+/// (the pivoting LBLᵀ of `fem::complex_symmetric`), whatever its size; only where
+/// [`supernodal_allowed`].
+pub(crate) fn supernodal_cholesky_params() -> CholeskySymbolicParams<'static> {
+    CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+        ..Default::default()
+    }
+}
+
+/// Symbolic settings of the simplicial sparse LU used where supernodal factorisations are not
+/// allowed.
 pub(crate) fn lu_params() -> LuSymbolicParams<'static> {
     LuSymbolicParams {
         supernodal_flop_ratio_threshold: *THRESHOLD,

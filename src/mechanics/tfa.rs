@@ -41,7 +41,7 @@ pub struct TfaOptions {
     /// Drive pressure (Pa); the response is linear, so it only scales the displacements.
     pub drive_pa: f64,
     /// How the frequencies are solved: from one reduced model checked on the full system at
-    /// each frequency (`fem::SweepOptions`, the default), or `None`: one complex sparse LU per
+    /// each frequency (`fem::SweepOptions`, the default), or `None`: one sparse factorisation per
     /// frequency.
     pub reduced: Option<SweepOptions>,
 }
