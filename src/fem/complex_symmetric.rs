@@ -57,7 +57,7 @@ enum Analysis {
     /// each complex entry goes in it.
     RealForm {
         pattern: SymbolicSparseColMat<usize>,
-        symbolic: SymbolicCholesky<usize>,
+        symbolic: Box<SymbolicCholesky<usize>>,
         slots: Vec<RealSlot>,
     },
     /// The simplicial complex LU, where supernodal factorisations are not allowed.
@@ -80,17 +80,13 @@ impl ComplexSymmetric {
             let symbolic = factorize_symbolic_cholesky(
                 real.as_ref(),
                 Side::Lower,
-                SymmetricOrdering::Custom(PermRef::new_checked(
-                    &forward,
-                    &inverse,
-                    forward.len(),
-                )),
+                SymmetricOrdering::Custom(PermRef::new_checked(&forward, &inverse, forward.len())),
                 variant::supernodal_cholesky_params(),
             )
             .map_err(|e| faer_error("symbolic analysis of the real form", e))?;
             Analysis::RealForm {
                 pattern: real,
-                symbolic,
+                symbolic: Box::new(symbolic),
                 slots,
             }
         } else {
@@ -224,13 +220,16 @@ fn paired_amd(s: SymbolicSparseColMatRef<'_, usize>) -> Result<(Vec<usize>, Vec<
         MemStack::new(&mut mem),
     )
     .map_err(|e| faer_error("ordering", e))?;
-    let pairs = |p: &[usize]| -> Vec<usize> { p.iter().flat_map(|&v| [2 * v, 2 * v + 1]).collect() };
+    let pairs =
+        |p: &[usize]| -> Vec<usize> { p.iter().flat_map(|&v| [2 * v, 2 * v + 1]).collect() };
     Ok((pairs(&forward), pairs(&inverse)))
 }
 
 /// The lower pattern of the real form of the full complex pattern `s`, and where each lower
 /// complex entry goes in it.
-fn real_form_pattern(s: SymbolicSparseColMatRef<'_, usize>) -> (SymbolicSparseColMat<usize>, Vec<RealSlot>) {
+fn real_form_pattern(
+    s: SymbolicSparseColMatRef<'_, usize>,
+) -> (SymbolicSparseColMat<usize>, Vec<RealSlot>) {
     let m = s.ncols();
     let mut col_ptr = Vec::with_capacity(2 * m + 1);
     let mut row_idx = Vec::with_capacity(2 * s.row_idx().len() + 2 * m);

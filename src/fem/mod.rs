@@ -11,6 +11,7 @@
 //! ordered x, y, z per node. Sign convention: K = −∂f/∂x (positive semi-definite).
 //! This module depends on no other otoatlas module.
 
+mod anderson;
 mod assembly;
 pub(crate) mod bending;
 mod cholesky;

@@ -33,6 +33,7 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::anderson::Anderson;
 use super::assembly::SparsePattern;
 use super::cholesky::SparseCholesky;
 use super::error::{ElementId, FemError};
@@ -89,6 +90,10 @@ pub struct StaticOptions {
     /// is above (1 − this) times the previous one's; 0 (the default) never. For loads the
     /// inversion guard keeps from being met: each step is halved and the residual creeps.
     pub stalled_below: f64,
+    /// Anderson acceleration of the chord steps (`fem::anderson`): the number of past
+    /// iterations mixed into each step taken with a reused tangent; the history is cleared
+    /// at each factorisation. 0 (the default) takes the plain steps.
+    pub anderson_depth: usize,
 }
 
 impl Default for StaticOptions {
@@ -101,6 +106,7 @@ impl Default for StaticOptions {
             reuse_tangent_below: 0.0,
             balanced_below: 0.0,
             stalled_below: 0.0,
+            anderson_depth: 0,
         }
     }
 }
@@ -136,6 +142,8 @@ pub struct StaticSolver<'m> {
     forces: Vec<Vector3<f64>>,
     rhs: Vec<f64>,
     trial: Vec<Point3<f64>>,
+    /// The iterate, flattened, for the Anderson history.
+    fixed_point: Vec<f64>,
     tangent_diagonal: Vec<f64>,
     /// `tangent_diagonal` of the previous solve, to tell whether its tangent carries over.
     previous_diagonal: Vec<f64>,
@@ -169,6 +177,7 @@ impl<'m> StaticSolver<'m> {
             forces: vec![Vector3::zeros(); model.node_count()],
             rhs: vec![0.0; model.dof_count()],
             trial: Vec::with_capacity(model.node_count()),
+            fixed_point: Vec::with_capacity(3 * model.node_count()),
             tangent_diagonal: vec![0.0; model.node_count()],
             previous_diagonal: vec![0.0; model.node_count()],
             factorised_pressure: None,
@@ -263,6 +272,7 @@ impl<'m> StaticSolver<'m> {
         let mut max_update = f64::INFINITY;
         let mut relative_residual = f64::INFINITY;
         let mut first_residual = None;
+        let mut anderson = Anderson::new(options.anderson_depth);
         for iteration in 1..=options.max_iterations {
             let load = self.residual(x, loads, pressure)?;
             let residual = self.rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
@@ -298,8 +308,15 @@ impl<'m> StaticSolver<'m> {
             if !reuse {
                 self.factorise_tangent(x, pressure.is_some())?;
                 factorisations += 1;
+                anderson.clear();
             }
             self.cholesky.solve_in_place(&mut self.rhs)?;
+            if options.anderson_depth > 0 {
+                self.fixed_point.clear();
+                self.fixed_point
+                    .extend(x.iter().flat_map(|p| [p.x, p.y, p.z]));
+                anderson.accelerate(&self.fixed_point, &mut self.rhs);
+            }
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
             halvings += h;
             max_update = step;

@@ -36,6 +36,11 @@ const RESIDUAL_TOLERANCE: f64 = 1e-3;
 /// keeps more factorisations, 0.7 and 0.9 hardly fewer for more iterations.
 const REUSE_TANGENT_BELOW: f64 = 0.5;
 
+/// Default `UdspOptions::anderson_depth`: on the default atlas's 33-point curve 285 → 221
+/// Newton iterations (depths 3-8 give 218-221), on the sample packages' gate curves 51-59 →
+/// 48-50, the umbo displacements within 3 nm (BENCHMARKS.md).
+const ANDERSON_DEPTH: usize = 4;
+
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UdspOptions {
@@ -60,6 +65,9 @@ pub struct UdspOptions {
     /// residual fell to at most this fraction of the previous one keeps the last factorised
     /// tangent; 0 factorises at every iteration.
     pub reuse_tangent_below: f64,
+    /// Anderson acceleration of the chord steps (`StaticOptions::anderson_depth`): past
+    /// iterations mixed into each; 0 takes the plain steps.
+    pub anderson_depth: usize,
 }
 
 impl Default for UdspOptions {
@@ -74,6 +82,7 @@ impl Default for UdspOptions {
             max_iterations: 200,
             tangent_shift: 100.0,
             reuse_tangent_below: REUSE_TANGENT_BELOW,
+            anderson_depth: ANDERSON_DEPTH,
         }
     }
 }
@@ -214,6 +223,7 @@ fn solve_branch(
         max_iterations: options.max_iterations,
         tangent_shift: options.tangent_shift,
         reuse_tangent_below: options.reuse_tangent_below,
+        anderson_depth: options.anderson_depth,
         ..StaticOptions::default()
     };
     let u0 = system.umbo.position(rest);
