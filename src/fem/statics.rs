@@ -23,6 +23,10 @@
 //! same diagonal (shift and springs) and pressure terms: the next load increment starts
 //! where the last one ended, at the same tangent.
 //!
+//! Anderson acceleration (`StaticOptions::anderson_depth`, off by default; `fem::anderson`):
+//! the steps taken with a reused tangent mix in the last few iterates, which speeds up the
+//! chord iteration's linear convergence; the history is cleared at each factorisation.
+//!
 //! Balance and stall (`StaticOptions::balanced_below`, `stalled_below`, off by default), for
 //! solves that only need the loads met: the solve is converged, without a further step, once
 //! the residual norm has fallen to that fraction of the first iteration's (the warped tangent
