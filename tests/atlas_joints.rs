@@ -225,3 +225,40 @@ fn the_chain_surface_is_the_outer_surface_of_bones_and_joints() {
     let topology = surface_topology(&chain);
     assert!(topology.is_closed_oriented_manifold(), "{topology:?}");
 }
+
+/// The eardrum hangs on the manubrium along its whole attachment line: the drum's nodes that
+/// are malleus nodes run from the umbo up the manubrium, all fifteen nodes of the line, none
+/// missing between them (no gap of two membrane edges, 0.48 mm). Before the builder tied every line node (2026-11-27), two of the
+/// default line's fifteen were left free, and a finer drum was tied at fewer points still
+/// (docs/mechanics.md, "The eardrum's own convergence").
+#[test]
+fn the_eardrum_is_tied_to_the_manubrium_along_its_attachment_line() {
+    let atlas = atlas();
+    let mesh = &atlas.mesh.tets;
+    let at = atlas.landmark_positions(atlas.nodes());
+    let malleus: std::collections::BTreeSet<u32> = (0..mesh.tets.len())
+        .filter(|&t| bone_of(mesh.regions[t]) == Some(Bone::Malleus))
+        .flat_map(|t| mesh.tets[t])
+        .collect();
+    let mut tied: Vec<f64> = atlas
+        .mesh
+        .triangles
+        .iter()
+        .flatten()
+        .copied()
+        .collect::<std::collections::BTreeSet<u32>>()
+        .into_iter()
+        .filter(|n| malleus.contains(n))
+        .map(|n| (atlas.nodes()[n as usize] - at.umbo).norm())
+        .collect();
+    tied.sort_by(f64::total_cmp);
+    assert!(tied.len() >= 15, "{} drum nodes tied: {tied:?}", tied.len());
+    assert!(tied[0] < 0.24, "no tie at the umbo: {tied:?}");
+    let gap = tied.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    assert!(gap <= 0.45, "a gap of {gap:.3} mm between ties: {tied:?}");
+    assert!(
+        tied[tied.len() - 1] > 3.0,
+        "the ties end {:.2} mm from the umbo",
+        tied[tied.len() - 1]
+    );
+}

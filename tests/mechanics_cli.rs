@@ -36,8 +36,8 @@ fn simulate_writes_the_umbo_trajectory() {
 }
 
 /// `--condition stapes-fixation` steps the fixed ear: under 1 kPa its umbo settles on the
-/// fixed ear's static value (56.24 µm, `otoatlas validate --condition stapes-fixation`), not
-/// the normal ear's (89.76 µm); the JSON says which ear it stepped.
+/// fixed ear's static value (51.55 µm, `otoatlas validate --condition stapes-fixation`), not
+/// the normal ear's (86.5 µm); the JSON says which ear it stepped.
 #[test]
 fn simulate_steps_the_ear_of_the_condition() {
     let final_umbo = |condition: &str| {
@@ -57,7 +57,7 @@ fn simulate_steps_the_ear_of_the_condition() {
     let (normal, fixed) = (final_umbo("normal"), final_umbo("stapes-fixation"));
     println!("umbo after 8 steps at 1 kPa: normal {normal} mm, stapes fixation {fixed} mm");
     assert!((0.085..0.0900).contains(&normal), "{normal}");
-    assert!((0.053..0.0565).contains(&fixed), "{fixed}");
+    assert!((0.050..0.053).contains(&fixed), "{fixed}");
 }
 
 #[test]

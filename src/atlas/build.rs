@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::Point3;
 
+use super::attachment::{self, ATTACH_TOLERANCE_MM, Attachment};
 use super::joint_layer::{JointLayer, joint_layers};
 use super::materials::{
     ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
@@ -31,10 +32,6 @@ use crate::mesh::tet::BoundaryOf;
 /// Target edge of the eardrum triangles in the default atlas \[mm\]: about 2,500 triangles
 /// (the source study: 2,492).
 pub const DEFAULT_MEMBRANE_EDGE_MM: f64 = 0.24;
-
-/// How far a membrane node on the manubrium line may be from the manubrium's surface nodes
-/// to be merged with one of them [mm].
-const ATTACH_TOLERANCE_MM: f64 = 0.45;
 
 /// Why the atlas could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -87,8 +84,13 @@ pub fn build_atlas(
     provenance.insert(
         "manubrium_attachment".into(),
         format!(
-            "{} membrane nodes merged with manubrium nodes, farthest {:.3} mm",
-            merged.attached, merged.farthest_merge_mm
+            "{} membrane nodes tied to the manubrium ({} merged with its nodes, {} inserted into \
+             its surface), {} left free, farthest move {:.3} mm",
+            merged.attachment.merged + merged.attachment.inserted,
+            merged.attachment.merged,
+            merged.attachment.inserted,
+            merged.attachment.refused,
+            merged.attachment.farthest_mm
         ),
     );
     Ok(Atlas {
@@ -222,74 +224,34 @@ type Surfaces = BTreeMap<String, Vec<[u32; 3]>>;
 struct Merged {
     mesh: VolumeMesh,
     rim: Vec<u32>,
-    attached: usize,
-    farthest_merge_mm: f64,
+    attachment: Attachment,
 }
 
-/// Appends the membrane to the tetrahedral mesh, merging the nodes of its manubrium
-/// attachment line with the nearest surface nodes of the manubrium (each manubrium node
-/// taking at most one membrane node, and no merge that would flip a membrane triangle).
+/// Appends the membrane to the tetrahedral mesh, every node of its manubrium attachment line
+/// tied to the malleus (`attachment`).
 fn attach_membrane(
     tets: &mut TetMesh,
     membrane: &MembraneMesh,
     medial: nalgebra::Vector3<f64>,
 ) -> Result<Merged, BuildError> {
-    let handle = tets
-        .boundary(BoundaryOf::Region(Region::MalleusHandle.label()))
-        .node_of_vertex;
-    let mut candidates: Vec<(f64, u32, u32)> = Vec::new();
-    for &m in &membrane.attachment {
-        let p = membrane.nodes[m as usize];
-        for &h in &handle {
-            let d = (tets.nodes[h as usize] - p).norm();
-            if d <= ATTACH_TOLERANCE_MM {
-                candidates.push((d, m, h));
-            }
-        }
-    }
-    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-    let mut target: Vec<Option<u32>> = vec![None; membrane.nodes.len()];
-    let mut taken = std::collections::BTreeSet::new();
-    let mut farthest = 0.0f64;
-    for (d, m, h) in candidates {
-        if target[m as usize].is_some() || taken.contains(&h) {
-            continue;
-        }
-        target[m as usize] = Some(h);
-        if flips_a_triangle(membrane, &target, &tets.nodes, medial) {
-            target[m as usize] = None;
-            continue;
-        }
-        taken.insert(h);
-        farthest = farthest.max(d);
-    }
-    let attached = target.iter().filter(|t| t.is_some()).count();
+    let tie = attachment::attach_membrane(tets, membrane, Region::MalleusHandle.label(), medial);
+    let attached = tie.merged + tie.inserted;
     if attached < 3 {
         return Err(assembly(format!(
             "the eardrum could be attached to the manubrium at {attached} nodes only; expected \
-             at least 3 manubrium surface nodes within {ATTACH_TOLERANCE_MM} mm of the \
-             attachment line (is the umbo at the manubrium tip?)"
+             at least 3 of its attachment line within {ATTACH_TOLERANCE_MM} mm of the \
+             manubrium's surface (is the umbo at the manubrium tip?)"
         )));
-    }
-    let mut membrane_node = Vec::with_capacity(membrane.nodes.len());
-    for (k, t) in target.iter().enumerate() {
-        membrane_node.push(match t {
-            Some(h) => *h,
-            None => {
-                tets.nodes.push(membrane.nodes[k]);
-                (tets.nodes.len() - 1) as u32
-            }
-        });
     }
     let triangles: Vec<[u32; 3]> = membrane
         .triangles
         .iter()
-        .map(|t| t.map(|v| membrane_node[v as usize]))
+        .map(|t| t.map(|v| tie.membrane_node[v as usize]))
         .collect();
     let rim = membrane
         .rim
         .iter()
-        .map(|&v| membrane_node[v as usize])
+        .map(|&v| tie.membrane_node[v as usize])
         .collect();
     Ok(Merged {
         mesh: VolumeMesh {
@@ -298,33 +260,7 @@ fn attach_membrane(
             triangle_regions: membrane.regions.iter().map(|r| r.id()).collect(),
         },
         rim,
-        attached,
-        farthest_merge_mm: farthest,
-    })
-}
-
-/// Whether moving the membrane nodes to their merge targets flips or collapses a triangle.
-fn flips_a_triangle(
-    membrane: &MembraneMesh,
-    target: &[Option<u32>],
-    tet_nodes: &[Point3<f64>],
-    medial: nalgebra::Vector3<f64>,
-) -> bool {
-    let at = |v: u32| match target[v as usize] {
-        Some(h) => tet_nodes[h as usize],
-        None => membrane.nodes[v as usize],
-    };
-    membrane.triangles.iter().any(|t| {
-        if t.iter().all(|v| target[*v as usize].is_none()) {
-            return false;
-        }
-        let [a, b, c] = t.map(at);
-        let n = (b - a).cross(&(c - a));
-        let rest = {
-            let [a0, b0, c0] = t.map(|v| membrane.nodes[v as usize]);
-            (b0 - a0).cross(&(c0 - a0)).norm()
-        };
-        n.dot(&medial) > -0.2 * rest
+        attachment: tie,
     })
 }
 

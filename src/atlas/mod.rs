@@ -7,6 +7,7 @@
 //! `docs/anatomy.md`.
 
 pub mod anatomy;
+mod attachment;
 pub mod build;
 pub mod eardrum;
 pub mod export;

@@ -101,10 +101,14 @@ impl Registered {
 
 /// The deformable stage from the placed atlas: each ossicle's pose, then the ossicles and
 /// their connective tissue through the FEM (its rest shape the articulated atlas), then the
-/// eardrum. `step` is the probe step (the smallest voxel spacing, mm).
+/// eardrum. `step` is the probe step (the smallest voxel spacing, mm). `reference` is the
+/// atlas the element floors (`mesh::quality`) compare volumes with: the atlas placed by the
+/// landmark fit, as `verify` compares a package's with (`placed` itself, or, when the atlas
+/// was placed again from a registration, the placement before).
 pub fn deform_atlas(
     atlas: &Atlas,
     placed: &[Point3<f64>],
+    reference: &[Point3<f64>],
     sampler: &Sampler,
     step: f64,
     settings: DeformSettings,
@@ -126,7 +130,7 @@ pub fn deform_atlas(
         // the carry may squeeze a joint element flat where two bones close in on it: the
         // atlas then goes the largest part of the way (from the placed atlas, in quarters)
         // that keeps every element above the floors
-        let flat = flattest_below_floors(&atlas.mesh.tets.tets, placed, &x);
+        let flat = flattest_below_floors(&atlas.mesh.tets.tets, reference, &x);
         match flat {
             None => (x, Some(record)),
             Some(flat) => {
@@ -141,7 +145,7 @@ pub fn deform_atlas(
                     .into_iter()
                     .map(|t| (t, part_way(t)))
                     .find(|(_, x)| {
-                        flattest_below_floors(&atlas.mesh.tets.tets, placed, x).is_none()
+                        flattest_below_floors(&atlas.mesh.tets.tets, reference, x).is_none()
                     })
                     .unwrap_or_else(|| (0.0, placed.to_vec()));
                 record.shortened = Some(format!(
@@ -170,7 +174,7 @@ pub fn deform_atlas(
         let model = atlas.fem_model(&rest, moduli, false)?;
         let floors = ElementFloors::new(
             &atlas.mesh.tets.tets,
-            placed,
+            reference,
             &rest,
             REGISTRATION_SHAPE_QUALITY,
         );
@@ -188,7 +192,7 @@ pub fn deform_atlas(
         // keeps a tenth of each element's volume at its own rest shape, and each level
         // regularises from the last one's shape
         if level_index > 0
-            && flattest_below_floors(&atlas.mesh.tets.tets, placed, &level.positions).is_some()
+            && flattest_below_floors(&atlas.mesh.tets.tets, reference, &level.positions).is_some()
         {
             break;
         }
@@ -219,7 +223,7 @@ pub fn deform_atlas(
     let refinement = refine_cfg.enabled.then(|| {
         refine(
             &atlas.mesh.tets,
-            placed,
+            reference,
             &probes,
             &mut result.positions,
             sampler,
@@ -233,7 +237,7 @@ pub fn deform_atlas(
     seconds.eardrum = clock.elapsed().as_secs_f64();
     // the levels each keep the floors from where they start; an element the first FEM level or
     // the articulation left below them is refused here rather than written into a package
-    if let Some(flat) = flattest_below_floors(&atlas.mesh.tets.tets, placed, &result.positions) {
+    if let Some(flat) = flattest_below_floors(&atlas.mesh.tets.tets, reference, &result.positions) {
         let region = atlas.mesh.tets.regions[flat.tetrahedron];
         return Err(DeformError::FlatElement {
             tetrahedron: flat.tetrahedron,

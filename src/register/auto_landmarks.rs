@@ -167,6 +167,7 @@ pub fn propose_landmarks(
         deform_atlas(
             atlas,
             placed,
+            placed,
             input.sampler,
             input.step,
             input.settings,

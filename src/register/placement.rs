@@ -57,7 +57,9 @@ pub(crate) fn placement_from_registration(
 /// articulation and the FEM levels only (no surface level, the eardrum following the
 /// manubrium): the placement needs the ossicles' pose and size, not their last detail.
 /// The registration records the scale of each placement made (`placed_again`) and the
-/// passes' time. A pass whose registration fails, or whose placement is refused, ends the
+/// passes' time. Every registration keeps the element floors against `placed` (the landmark
+/// fit's placement, which `verify` checks a package against), not against the placement it
+/// starts from. A pass whose registration fails, or whose placement is refused, ends the
 /// passes (logged), and the final registration starts from the placement before it.
 pub fn deform_placed_again(
     atlas: &Atlas,
@@ -87,7 +89,8 @@ pub fn deform_placed_again(
     };
     let bones = bone_nodes(atlas);
     for _ in 0..passes {
-        let registered = match deform_atlas(atlas, &start, sampler, step, coarse, progress) {
+        let registered = match deform_atlas(atlas, &start, placed, sampler, step, coarse, progress)
+        {
             Ok(registered) => registered,
             Err(e) => {
                 progress.log(&format!(
@@ -112,7 +115,7 @@ pub fn deform_placed_again(
         scales.push(placement.scale);
     }
     let seconds = clock.elapsed().as_secs_f64();
-    let mut registered = deform_atlas(atlas, &start, sampler, step, settings, progress)?;
+    let mut registered = deform_atlas(atlas, &start, placed, sampler, step, settings, progress)?;
     registered.placed_again = scales;
     registered.seconds.placement = seconds;
     Ok(registered)
