@@ -79,11 +79,14 @@ pub(super) fn attach_membrane(
         .collect();
     let conformed = conform(tets, membrane, &handle);
     let mut target: Vec<Option<u32>> = vec![None; conformed.nodes.len()];
+    // the malleus nodes tied so far, and the handle's faces (again after each insertion)
+    let mut taken: BTreeSet<u32> = BTreeSet::new();
+    let mut faces = handle_faces(tets, &handle);
     let (mut merged, mut inserted, mut refused) = (0, 0, 0);
     let mut farthest = 0.0f64;
     for &m in &membrane.attachment {
         let p = conformed.nodes[m as usize];
-        let Some((face, weights, distance)) = closest_face(tets, &handle, &p) else {
+        let Some((face, weights, distance)) = closest_face(tets, &faces, &p) else {
             refused += 1;
             continue;
         };
@@ -94,7 +97,7 @@ pub(super) fn attach_membrane(
         let near = face
             .iter()
             .copied()
-            .filter(|v| target.iter().all(|t| *t != Some(*v)))
+            .filter(|v| !taken.contains(v))
             .map(|v| ((tets.nodes[v as usize] - p).norm(), v))
             .min_by(|a, b| a.0.total_cmp(&b.0));
         let original = membrane.nodes[m as usize];
@@ -110,6 +113,7 @@ pub(super) fn attach_membrane(
         // nearest free corner of the face however far, if that flips nothing
         if let Some((_, v)) = near.filter(|(d, _)| *d <= MERGE_TOLERANCE_MM) {
             if merge(&mut target, &tets.nodes, v) {
+                taken.insert(v);
                 merged += 1;
                 farthest = farthest.max((tets.nodes[v as usize] - original).norm());
                 continue;
@@ -118,6 +122,8 @@ pub(super) fn attach_membrane(
             let new = (tets.nodes.len() - 1) as u32;
             target[m as usize] = Some(new);
             if !flips_a_triangle(&conformed, membrane, &target, &tets.nodes, medial) {
+                taken.insert(new);
+                faces = handle_faces(tets, &handle);
                 inserted += 1;
                 farthest = farthest.max((tets.nodes[new as usize] - original).norm());
                 continue;
@@ -127,6 +133,7 @@ pub(super) fn attach_membrane(
         }
         match near {
             Some((_, v)) if merge(&mut target, &tets.nodes, v) => {
+                taken.insert(v);
                 merged += 1;
                 farthest = farthest.max((tets.nodes[v as usize] - original).norm());
             }
@@ -153,18 +160,26 @@ pub(super) fn attach_membrane(
     }
 }
 
-/// The outer boundary face of the handle closest to `p`: its nodes, the closest point's
-/// barycentric weights on it, and the distance.
-fn closest_face(
-    tets: &TetMesh,
-    handle: &BTreeSet<u32>,
-    p: &Point3<f64>,
-) -> Option<([u32; 3], [f64; 3], f64)> {
+/// The handle's outer boundary faces (the mesh's boundary faces whose nodes are all the
+/// handle's).
+fn handle_faces(tets: &TetMesh, handle: &BTreeSet<u32>) -> Vec<[u32; 3]> {
     tets.boundary(BoundaryOf::Whole)
         .node_triangles()
         .into_iter()
         .filter(|f| f.iter().all(|v| handle.contains(v)))
-        .map(|f| {
+        .collect()
+}
+
+/// The face of `faces` closest to `p`: its nodes, the closest point's barycentric weights on
+/// it, and the distance.
+fn closest_face(
+    tets: &TetMesh,
+    faces: &[[u32; 3]],
+    p: &Point3<f64>,
+) -> Option<([u32; 3], [f64; 3], f64)> {
+    faces
+        .iter()
+        .map(|&f| {
             let [a, b, c] = f.map(|v| tets.nodes[v as usize]);
             let (q, _) = closest_point_on_triangle(p, &a, &b, &c);
             (f, barycentric(&q, &a, &b, &c), (q - p).norm())
@@ -288,12 +303,13 @@ fn children(tet: [u32; 4], split: &[u32], new: u32) -> Vec<[u32; 4]> {
 /// The membrane moved so that its attachment line lies on the handle's outer surface
 /// (module docs, step 1); the rim stays.
 fn conform(tets: &TetMesh, membrane: &MembraneMesh, handle: &BTreeSet<u32>) -> MembraneMesh {
+    let faces = handle_faces(tets, handle);
     let offsets: Vec<(Point3<f64>, Vector3<f64>)> = membrane
         .attachment
         .iter()
         .filter_map(|&m| {
             let p = membrane.nodes[m as usize];
-            let (face, weights, distance) = closest_face(tets, handle, &p)?;
+            let (face, weights, distance) = closest_face(tets, &faces, &p)?;
             (distance <= ATTACH_TOLERANCE_MM).then(|| {
                 let q = face
                     .iter()
