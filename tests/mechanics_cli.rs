@@ -1,8 +1,8 @@
 //! `otoatlas simulate` end to end: the trajectory file, the JSON report, a pathology, bad
 //! options.
 //! `validate` (its numbers are exercised by the library tests): the progress it logs when
-//! stderr is not a terminal, the evidence it lists source by source, and its refusal of a bad
-//! option.
+//! stderr is not a terminal, the evidence it lists source by source, its refusal of a bad
+//! option and of an anatomy the atlas was not built from.
 
 use crate::common::{otoatlas, otoatlas_json};
 
@@ -74,6 +74,50 @@ fn validate_rejects_a_bad_eardrum_bending_thickness() {
     // exit 1 is kept for a failed gate
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("bending thickness"), "{stderr}");
+}
+
+/// `validate --convergence` rebuilds the atlas from the anatomy it was built from, which the
+/// atlas's provenance names by its digest: another anatomy (here the embedded one with a
+/// blend radius changed) is refused before any solve, as bad input. A comment added to the
+/// same anatomy does not change the digest (the spec, not the file's bytes, is hashed).
+#[test]
+fn validate_convergence_refuses_an_anatomy_the_atlas_was_not_built_from() {
+    use otoatlas::atlas::build::anatomy_digest;
+    use otoatlas::atlas::{Anatomy, DEFAULT_TOML};
+    let dir = tempfile::tempdir().unwrap();
+    let commented = dir.path().join("commented.toml");
+    std::fs::write(&commented, format!("# a note\n{DEFAULT_TOML}")).unwrap();
+    assert_eq!(
+        anatomy_digest(&Anatomy::load(&commented).unwrap()),
+        anatomy_digest(&Anatomy::default_right().unwrap())
+    );
+    let other = dir.path().join("other.toml");
+    assert!(DEFAULT_TOML.contains("blend_mm = 0.3\n"));
+    std::fs::write(
+        &other,
+        DEFAULT_TOML.replacen("blend_mm = 0.3\n", "blend_mm = 0.35\n", 1),
+    )
+    .unwrap();
+    let out = otoatlas(&[
+        "validate",
+        "--convergence",
+        "--anatomy",
+        other.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("the anatomy the atlas was built from")
+            && stderr.contains("anatomy_sha256"),
+        "{stderr}"
+    );
+    // refused before the atlas's own checks ran: nothing on stdout
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
 }
 
 #[test]

@@ -116,7 +116,9 @@ pub fn build_atlas(
     })
 }
 
-fn anatomy_digest(anatomy: &Anatomy) -> String {
+/// The SHA-256 of `anatomy`'s canonical TOML, as the atlas's provenance `anatomy_sha256`
+/// records it.
+pub fn anatomy_digest(anatomy: &Anatomy) -> String {
     let text = toml::to_string(anatomy.spec()).unwrap_or_default();
     crate::io_util::sha256_hex(text.as_bytes())
 }

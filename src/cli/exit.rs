@@ -63,7 +63,8 @@ pub fn exit_status(err: &Error) -> ExitStatus {
             _ => ExitStatus::BadInput,
         },
         Error::Mechanics(e) => match e {
-            crate::mechanics::MechanicsError::InvalidOption { .. } => ExitStatus::BadInput,
+            crate::mechanics::MechanicsError::InvalidOption { .. }
+            | crate::mechanics::MechanicsError::NotRebuildable { .. } => ExitStatus::BadInput,
             _ => ExitStatus::CaseFailed,
         },
         // a symbolic link loop among the inputs (a case's segmentation/, say) is the input's

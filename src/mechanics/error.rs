@@ -1,6 +1,7 @@
 //! Errors of the mechanical checks: a missing boundary set or surface in the atlas, a failed
 //! solve (with the FEM's own message), a bad option, or a chart that could not be drawn.
 
+use crate::atlas::BuildError;
 use crate::fem::FemError;
 
 /// A mechanical validation or simulation could not be carried out.
@@ -20,6 +21,10 @@ pub enum MechanicsError {
         #[source]
         source: FemError,
     },
+    #[error("the eardrum's convergence: {what}")]
+    NotRebuildable { what: String },
+    #[error("rebuilding the atlas with a finer eardrum: {0}")]
+    Rebuild(#[source] BuildError),
     #[error("{what} = {value} is invalid (expected {expected})")]
     InvalidOption {
         what: &'static str,

@@ -1,12 +1,13 @@
 //! Mechanical validation and simulation of an atlas (or of a package: the atlas with
 //! registered node positions): umbo displacement under static pressure (UDSP), the stapes
-//! velocity transfer function (TFA), their verdicts against literature bands and against a
+//! velocity transfer function (TFA), the eardrum mesh's convergence, their verdicts against literature bands and against a
 //! reference atlas, pathologies of the chain (`condition`), and real-time implicit time
 //! stepping. Method, bands (and where they come
 //! from) and figures: `docs/mechanics.md`; the FEM formulas: `docs/fem.md`.
 
 pub mod boundary;
 pub mod condition;
+pub mod convergence;
 pub mod error;
 pub mod evidence;
 pub mod simulate;
@@ -17,6 +18,7 @@ pub mod verdict;
 
 pub use boundary::{MechanicalSystem, TiedPoint};
 pub use condition::{Condition, FIXATION_FACTOR};
+pub use convergence::{ConvergenceLevel, DrumConvergence, DrumStudy};
 pub use error::MechanicsError;
 pub use evidence::{Evidence, EvidencePoint, evidence};
 pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
