@@ -292,7 +292,10 @@ fn refining_the_eardrum_moves_its_mechanics_by_under_1_db_and_5_percent() {
     assert!(levels[2].membrane_triangles > 3 * levels[0].membrane_triangles);
     assert!(study.converged, "{study:?}");
     for l in &levels[..2] {
-        assert!(l.worst_db <= 1.0 && l.worst_static_fraction <= 0.05, "{l:?}");
+        assert!(
+            l.worst_db <= 1.0 && l.worst_static_fraction <= 0.05,
+            "{l:?}"
+        );
     }
     assert_eq!(levels[2].worst_db, 0.0);
     assert_eq!(levels[2].worst_static_fraction, 0.0);

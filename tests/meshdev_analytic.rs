@@ -1,12 +1,16 @@
 //! Surface distances against analytic truth: concentric icospheres (radius difference up to
 //! the tessellation's chord error), parallel planes, a mesh against itself, a box inside a
 //! longer box (exact one-sided means, maxima, P95 and Surface Dice), and the
-//! pseudonormal sign against exact box and torus signed distances.
+//! pseudonormal sign against exact box and torus signed distances; a reference prepared once
+//! scores as a fresh comparison.
 
 use nalgebra::Point3;
 use otoatlas::mesh::spatial::SpatialError;
 use otoatlas::mesh::{TriMesh, shapes};
-use otoatlas::meshdev::{CompareOptions, Feature, MeshDevError, Sampling, SignedSurface, compare};
+use otoatlas::meshdev::{
+    CompareOptions, Feature, MeshDevError, PreparedReference, Sampling, SignedSurface, compare,
+    compare_prepared,
+};
 
 fn options(count: usize, tolerance: f64) -> CompareOptions {
     CompareOptions {
@@ -134,6 +138,31 @@ fn parallel_planes_are_exactly_the_offset_apart() {
     )
     .unwrap();
     assert!(close(r.distances.bias, -0.3, 1e-12));
+}
+
+/// A reference prepared once (`PreparedReference`: indexed and sampled) scores each test
+/// surface exactly as `compare` does from scratch, here planes at several exact offsets; a
+/// comparison asking for another sampling than the reference was prepared with is refused.
+#[test]
+fn a_prepared_reference_scores_as_a_fresh_comparison() {
+    let reference = plane(0.0, 7, false);
+    let opts = options(5_000, 0.25);
+    let prepared = PreparedReference::new(&reference, &opts.sampling).unwrap();
+    for z in [0.1, -0.2, 0.3] {
+        let test = plane(z, 10, false);
+        let fresh = compare(&test, &reference, &opts).unwrap();
+        let reused = compare_prepared(&test, &prepared, &opts).unwrap();
+        assert_eq!(fresh, reused);
+        assert!(close(reused.distances.masd, z.abs(), 1e-12));
+    }
+    let other = options(6_000, 0.25);
+    assert!(matches!(
+        compare_prepared(&plane(0.1, 10, false), &prepared, &other),
+        Err(MeshDevError::InvalidOption {
+            field: "sampling",
+            ..
+        })
+    ));
 }
 
 #[test]

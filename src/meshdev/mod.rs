@@ -88,6 +88,33 @@ fn require_area(mesh: &TriMesh, role: &'static str) -> Result<(), MeshDevError> 
     }
 }
 
+/// A reference surface made ready for comparisons: its signed-distance index and its area
+/// samples, built once for every test surface compared with it (`run` scores the rigid and
+/// the registered atlas against the same segmentation).
+pub struct PreparedReference {
+    index: SignedSurface,
+    samples: Samples,
+    sampling: Sampling,
+}
+
+impl PreparedReference {
+    /// Indexes and samples `reference` with `sampling`.
+    pub fn new(reference: &TriMesh, sampling: &Sampling) -> Result<Self, MeshDevError> {
+        sampling.validate()?;
+        let (index, samples) = rayon::join(
+            || SignedSurface::new(reference, "reference"),
+            || sample_surface(reference, sampling),
+        );
+        let index = index?;
+        require_area(reference, "reference")?;
+        Ok(PreparedReference {
+            index,
+            samples: samples?,
+            sampling: *sampling,
+        })
+    }
+}
+
 /// Compares `test` (e.g. the registered atlas structure) with `reference` (e.g. the manual
 /// segmentation of the same structure): symmetric statistics and the per-vertex signed
 /// deviation map of `test`.
@@ -97,19 +124,35 @@ pub fn compare(
     options: &CompareOptions,
 ) -> Result<Comparison, MeshDevError> {
     options.validate()?;
-    let (reference_index, test_bvh) = rayon::join(
-        || SignedSurface::new(reference, "reference"),
-        || Bvh::new(test, "test"),
-    );
-    let (reference_index, test_bvh) = (reference_index?, test_bvh?);
-    require_area(test, "test")?;
-    require_area(reference, "reference")?;
+    compare_prepared(
+        test,
+        &PreparedReference::new(reference, &options.sampling)?,
+        options,
+    )
+}
 
-    let (test_samples, reference_samples) = rayon::join(
+/// As [`compare`], against a reference already indexed and sampled with `options.sampling`.
+pub fn compare_prepared(
+    test: &TriMesh,
+    reference: &PreparedReference,
+    options: &CompareOptions,
+) -> Result<Comparison, MeshDevError> {
+    options.validate()?;
+    if reference.sampling != options.sampling {
+        return Err(MeshDevError::InvalidOption {
+            field: "sampling",
+            value: format!("{:?}", options.sampling),
+            expected: "the sampling the reference was prepared with",
+        });
+    }
+    let (test_bvh, test_samples) = rayon::join(
+        || Bvh::new(test, "test"),
         || sample_surface(test, &options.sampling),
-        || sample_surface(reference, &options.sampling),
     );
-    let (test_samples, reference_samples) = (test_samples?, reference_samples?);
+    let test_bvh = test_bvh?;
+    require_area(test, "test")?;
+    let (test_samples, reference_samples) = (test_samples?, &reference.samples);
+    let reference_index = &reference.index;
     let signed: Vec<f64> = test_samples
         .points
         .par_iter()

@@ -16,7 +16,9 @@ use crate::mesh::TriMesh;
 use crate::mesh::union::outer_surface;
 use crate::meshdev::sampling::DEFAULT_SEED;
 use crate::meshdev::structures::{FUSED_NAMES, default_label_table, load_structures};
-use crate::meshdev::{CompareOptions, MeshDevError, Sampling, SurfaceDistances, compare};
+use crate::meshdev::{
+    CompareOptions, MeshDevError, PreparedReference, Sampling, SurfaceDistances, compare_prepared,
+};
 
 /// The name given to the separate ossicles united (one of the fused names).
 const CHAIN: &str = FUSED_NAMES[1].0;
@@ -70,14 +72,16 @@ pub struct StructureScore {
     pub colours: Vec<[u8; 3]>,
 }
 
-/// Scores the atlas with its nodes at `nodes` against `reference`, per structure present in
-/// both; `tolerance_mm` is the surface-Dice tolerance (one voxel).
-pub fn score(
+/// Scores the atlas with its nodes at each of `node_sets` (the rigid fit's and the
+/// registration's, say) against `reference`, per structure present in both; `tolerance_mm`
+/// is the surface-Dice tolerance (one voxel). Each reference surface is indexed and sampled
+/// once for all the node sets.
+pub fn score<const N: usize>(
     atlas: &Atlas,
-    nodes: &[Point3<f64>],
+    node_sets: [&[Point3<f64>]; N],
     reference: &Reference,
     tolerance_mm: f64,
-) -> Result<BTreeMap<String, StructureScore>, MeshDevError> {
+) -> Result<[BTreeMap<String, StructureScore>; N], MeshDevError> {
     let options = CompareOptions {
         sampling: Sampling::Area {
             count: Some(SAMPLES_PER_SURFACE),
@@ -85,37 +89,44 @@ pub fn score(
         },
         ..CompareOptions::with_tolerance(tolerance_mm)
     };
-    let mut out = BTreeMap::new();
-    // each structure against its own reference
-    let mut jobs: Vec<(&str, TriMesh, &TriMesh)> = Vec::new();
+    // each structure against its own reference; a fused reference (one surface for the whole
+    // chain, as a CT segmentation that does not separate the ossicles gives) against the
+    // registered chain's outer surface as one solid
+    // (name, the part scored or None for the chain, the reference surface)
+    let mut truths: Vec<(&str, Option<Part>, &TriMesh)> = Vec::new();
     for part in Part::STRUCTURES {
         if let Some(truth) = reference.surfaces.get(part.name())
             && !atlas.labels_of(part).is_empty()
         {
-            jobs.push((part.name(), atlas.part_surface(part, nodes), truth));
+            truths.push((part.name(), Some(part), truth));
         }
     }
-    // a fused reference (one surface for the whole chain, as a CT segmentation that does not
-    // separate the ossicles gives) against the registered chain's outer surface as one solid
-    for (fused, _) in FUSED_NAMES {
-        let Some(truth) = reference.surfaces.get(fused) else {
-            continue;
-        };
-        if Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty()) {
-            jobs.push((fused, atlas.chain_surface(nodes), truth));
+    if Part::BONES.iter().all(|p| !atlas.labels_of(*p).is_empty()) {
+        for (fused, _) in FUSED_NAMES {
+            if let Some(truth) = reference.surfaces.get(fused) {
+                truths.push((fused, None, truth));
+            }
         }
     }
-    for (name, test, truth) in jobs {
-        let c = compare(&test, truth, &options)?;
-        out.insert(
-            name.to_string(),
-            StructureScore {
-                distances: c.distances,
-                surface: test,
-                deviation: c.deviation.quality,
-                colours: c.deviation.colours,
-            },
-        );
+    let mut out: [BTreeMap<String, StructureScore>; N] = std::array::from_fn(|_| BTreeMap::new());
+    for (name, part, truth) in truths {
+        let prepared = PreparedReference::new(truth, &options.sampling)?;
+        for (nodes, scores) in node_sets.iter().zip(&mut out) {
+            let test = match part {
+                Some(part) => atlas.part_surface(part, nodes),
+                None => atlas.chain_surface(nodes),
+            };
+            let c = compare_prepared(&test, &prepared, &options)?;
+            scores.insert(
+                name.to_string(),
+                StructureScore {
+                    distances: c.distances,
+                    surface: test,
+                    deviation: c.deviation.quality,
+                    colours: c.deviation.colours,
+                },
+            );
+        }
     }
     Ok(out)
 }

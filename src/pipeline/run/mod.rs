@@ -460,8 +460,7 @@ fn score_case(
     let mut in_memory = None;
     let scores: Scores = run_or_resume(&opts.out, opts.from, Stage::Score, clock, || {
         let reference = Reference::load(segmentation, &config.ingest)?;
-        let rigid = score(atlas, rigid_nodes, &reference, step)?;
-        let registered = score(atlas, nodes, &reference, step)?;
+        let [rigid, registered] = score(atlas, [rigid_nodes, nodes], &reference, step)?;
         let scores = scores_of(&rigid, &registered);
         in_memory = Some((registered, reference));
         Ok(scores)
