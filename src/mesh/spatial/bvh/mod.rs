@@ -81,6 +81,44 @@ impl Bvh {
         (Point3::from(root.lo), Point3::from(root.hi))
     }
 
+    /// Whether some point of the surface lies within `radius` of `p` (mm). Far cheaper than
+    /// [`Bvh::closest`] for a point far from the surface: every box beyond `radius` is pruned
+    /// at once, and the first triangle within it ends the search.
+    pub fn any_within(&self, p: &Point3<f64>, radius: f64) -> bool {
+        let r2 = radius * radius;
+        let mut stack = [0u32; STACK];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let nd = &self.nodes[node];
+            if box_distance2(nd, p) <= r2 {
+                if nd.count > 0 {
+                    let first = nd.first as usize;
+                    let hit =
+                        self.corners[first..first + nd.count as usize]
+                            .iter()
+                            .any(|[a, b, c]| {
+                                let (q, _) = closest_point_on_triangle(p, a, b, c);
+                                (p - q).norm_squared() <= r2
+                            });
+                    if hit {
+                        return true;
+                    }
+                } else {
+                    stack[sp] = nd.first + 1;
+                    sp += 1;
+                    node = nd.first as usize;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp] as usize;
+        }
+    }
+
     /// The exact closest point of the surface to `p`.
     pub fn closest(&self, p: &Point3<f64>) -> ClosestHit {
         let mut stack = [(0u32, 0.0f64); STACK];
@@ -172,6 +210,26 @@ mod tests {
             Bvh::new(&TriMesh::default(), "test").unwrap_err(),
             SpatialError::Empty { mesh: "test" }
         );
+    }
+
+    /// `any_within` says whether the closest point is within the radius, on points near
+    /// and far from a torus, radii on either side of the distance.
+    #[test]
+    fn any_within_agrees_with_the_closest_distance() {
+        let mesh = shapes::torus(3.0, 1.0, 40, 24);
+        let bvh = Bvh::new(&mesh, "test").unwrap();
+        let mut checked = [0usize; 2];
+        for i in 0..400 {
+            let t = i as f64 * 0.37;
+            let p = Point3::new(5.0 * t.cos(), 4.0 * (1.3 * t).sin(), 2.5 * (0.7 * t).cos());
+            let d = bvh.closest(&p).distance;
+            for radius in [0.5 * d, 0.999 * d, 1.001 * d, 2.0 * d + 0.1] {
+                let within = bvh.any_within(&p, radius);
+                assert_eq!(within, radius >= d, "{p} at {d}: radius {radius}");
+                checked[within as usize] += 1;
+            }
+        }
+        assert!(checked[0] > 0 && checked[1] > 0, "{checked:?}");
     }
 
     /// The tree query agrees with a scan of every triangle (same point–triangle routine) on
