@@ -334,6 +334,10 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(code, 0, "{again}");
     assert_eq!(again["scores"], full["scores"]);
     assert_eq!(again["rigid"], full["rigid"]);
+    // where the side came from is the first run's (the stage's file records the side it
+    // settled on, which is not where it came from)
+    assert_eq!(again["side_source"], full["side_source"]);
+    assert_eq!(full["side_source"], "DICOM laterality", "{full}");
     let timings: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("timings.json")).unwrap()).unwrap();
     assert!(timings.get("deform").is_none() && timings.get("score").is_some());
@@ -342,6 +346,7 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(code, 0, "{again}");
     assert_eq!(again["rigid"], full["rigid"]);
     assert_eq!(again["scores"], full["scores"]);
+    assert_eq!(again["side_source"], full["side_source"]);
 }
 
 /// A case folder and an output folder whose names are not UTF-8 (possible on Linux): the run

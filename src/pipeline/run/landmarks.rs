@@ -49,6 +49,13 @@ pub(super) fn landmarks(
         (None, false) => read_proposal_record(&artefact_path(out, Stage::Landmarks)),
     };
     let (side, mut side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
+    if opts.from > Stage::Landmarks
+        && opts.side.is_none()
+        && let Some(recorded) = read_side_source(&artefact_path(out, Stage::Landmarks))
+    {
+        // the stage's file carries the side it settled on, wherever that came from
+        side_source = recorded;
+    }
     if let Some(p) = &proposal {
         side_source = p.side_source.describe();
     } else if let Some(source) = proposal_record
@@ -92,6 +99,7 @@ pub(super) fn landmarks(
     }
     if opts.from <= Stage::Landmarks {
         let mut extra = serde_json::Map::new();
+        extra.insert("side_source".into(), side_source.into());
         if let Some(record) = &proposal_record {
             extra.insert("proposal".into(), record.clone());
         }
@@ -118,6 +126,15 @@ pub(super) fn landmarks(
 }
 
 /// The proposal record a landmarks artefact keeps, if its landmarks were proposed.
+/// Where the side recorded in the landmarks stage's file came from (`side_of`'s sources),
+/// if the file says.
+fn read_side_source(path: &Path) -> Option<&'static str> {
+    let text = crate::io_util::read_text(path).ok()?;
+    let doc: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let recorded = doc.get("side_source")?.as_str()?;
+    SIDE_SOURCES.into_iter().find(|s| *s == recorded)
+}
+
 fn read_proposal_record(path: &Path) -> Option<serde_json::Value> {
     let text = crate::io_util::read_text(path).ok()?;
     let mut doc: serde_json::Value = serde_json::from_str(&text).ok()?;
@@ -195,6 +212,9 @@ fn landmark_input(
     )))
 }
 
+/// Where the side can come from: `--side`, the landmark file, the DICOM laterality.
+const SIDE_SOURCES: [&str; 3] = ["--side", "landmark file", "DICOM laterality"];
+
 /// The side of the ear, where it came from, and a warning when `--side` overrides a
 /// disagreeing source. Without `--side`, a landmark file and a DICOM laterality that disagree
 /// are an error naming both (a mirrored atlas on the wrong ear registers badly, silently).
@@ -204,10 +224,8 @@ fn side_of(
     image: &LoadedImage,
 ) -> Result<(Side, &'static str, Option<LandmarkWarning>), Error> {
     let image_side = image.info.laterality.as_deref().and_then(Side::parse);
-    let sources = [
-        ("landmark file", file.side),
-        ("DICOM laterality", image_side),
-    ];
+    let [given, from_file, from_image] = SIDE_SOURCES;
+    let sources = [(from_file, file.side), (from_image, image_side)];
     if let Some(chosen) = opts.side {
         let against: Vec<String> = sources
             .iter()
@@ -216,7 +234,7 @@ fn side_of(
             .collect();
         let warning =
             (!against.is_empty()).then_some(LandmarkWarning::SideOverridden { chosen, against });
-        return Ok((chosen, "--side", warning));
+        return Ok((chosen, given, warning));
     }
     match (file.side, image_side) {
         (Some(f), Some(i)) if f != i => Err(Error::Usage(format!(
@@ -224,8 +242,8 @@ fn side_of(
             f.as_str(),
             i.as_str()
         ))),
-        (Some(f), _) => Ok((f, "landmark file", None)),
-        (None, Some(i)) => Ok((i, "DICOM laterality", None)),
+        (Some(f), _) => Ok((f, from_file, None)),
+        (None, Some(i)) => Ok((i, from_image, None)),
         (None, None) => Err(Error::Usage(
             "the side of the ear is unknown: the image has no Laterality (0020,0060) or \
              ImageLaterality (0020,0062) and the landmark file does not say; give --side left or \
