@@ -347,6 +347,26 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(again["rigid"], full["rigid"]);
     assert_eq!(again["scores"], full["scores"]);
     assert_eq!(again["side_source"], full["side_source"]);
+    // the other side cannot be given to a resumed run: its later stages were computed for the
+    // atlas mirrored to the first run's side; refused before any work, the outputs kept
+    let before = std::fs::read(out.join("metrics.json")).unwrap();
+    let o = otoatlas(&[
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--from",
+        "deform",
+        "--side",
+        "left",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--side left disagrees with the right ear"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(out.join("metrics.json")).unwrap(), before);
 }
 
 /// A case folder and an output folder whose names are not UTF-8 (possible on Linux): the run

@@ -126,6 +126,26 @@ pub(super) fn landmarks(
 }
 
 /// The proposal record a landmarks artefact keeps, if its landmarks were proposed.
+/// Refuses a `--side` that differs from the side a resumed run's landmarks stage recorded
+/// (the later stages' artefacts were made with the atlas mirrored to that side), before the
+/// run removes or writes anything.
+pub(super) fn check_resumed_side(opts: &RunOptions) -> Result<(), Error> {
+    let Some(given) = opts.side.filter(|_| opts.from > Stage::Landmarks) else {
+        return Ok(());
+    };
+    let path = artefact_path(&opts.out, Stage::Landmarks);
+    match read_landmarks(&path)?.side {
+        Some(recorded) if recorded != given => Err(Error::Usage(format!(
+            "--side {} disagrees with the {} ear the earlier run in {} settled on, which its \
+             later stages were computed for; give --from landmarks (or ingest) to change the side",
+            given.as_str(),
+            recorded.as_str(),
+            opts.out.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Where the side recorded in the landmarks stage's file came from (`side_of`'s sources),
 /// if the file says.
 fn read_side_source(path: &Path) -> Option<&'static str> {

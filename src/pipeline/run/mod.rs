@@ -179,6 +179,7 @@ pub fn run_case(
     let out = &opts.out;
     let started = Instant::now();
     let mut clock = Clock::default();
+    landmarks::check_resumed_side(opts)?;
     remove_previous_outputs(out)?;
 
     let ingested = ingest(cx, &mut clock)?;
