@@ -71,8 +71,9 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
         let mut keep: Vec<bool> = probes.iter().map(Option::is_some).collect();
         for (j, other) in indexed.iter().enumerate().filter(|(j, _)| *j != i) {
             let beside = |t: usize| -> Side {
-                let Some((centre, probe)) = probes[t] else {
-                    return Side::Outside;
+                let Some((centre, probe)) = probes[t].filter(|_| keep[t]) else {
+                    // degenerate, or dropped already by an earlier part: nothing to ask
+                    return Side::Hidden;
                 };
                 if !near_box(other.bounds(), &centre, reach) {
                     return Side::Outside;

@@ -42,18 +42,20 @@ pub(super) fn landmarks(
     } else {
         (read_landmarks(&artefact_path(out, Stage::Landmarks))?, None)
     };
-    let proposal_record = match (&proposal, opts.from <= Stage::Landmarks) {
-        (Some(p), _) => Some(proposal_record(p)),
-        (None, true) => None,
+    let recorded = match opts.from <= Stage::Landmarks {
+        true => Recorded::default(),
+        false => read_recorded(&artefact_path(out, Stage::Landmarks)),
+    };
+    let proposal_record = match &proposal {
+        Some(p) => Some(proposal_record(p)),
         // resumed: the record the landmarks stage kept, if they were proposed
-        (None, false) => read_proposal_record(&artefact_path(out, Stage::Landmarks)),
+        None => recorded.proposal,
     };
     let (side, mut side_source, side_warning) = side_of(opts, &file, &ingested.loaded)?;
-    if opts.from > Stage::Landmarks
-        && opts.side.is_none()
-        && let Some(recorded) = read_side_source(&artefact_path(out, Stage::Landmarks))
+    if opts.side.is_none()
+        && let Some(recorded) = recorded.side_source
     {
-        // the stage's file carries the side it settled on, wherever that came from
+        // resumed: the stage's file carries the side it settled on, wherever that came from
         side_source = recorded;
     }
     if let Some(p) = &proposal {
@@ -125,7 +127,6 @@ pub(super) fn landmarks(
     })
 }
 
-/// The proposal record a landmarks artefact keeps, if its landmarks were proposed.
 /// Refuses a `--side` that differs from the side a resumed run's landmarks stage recorded
 /// (the later stages' artefacts were made with the atlas mirrored to that side), before the
 /// run removes or writes anything.
@@ -146,19 +147,29 @@ pub(super) fn check_resumed_side(opts: &RunOptions) -> Result<(), Error> {
     }
 }
 
-/// Where the side recorded in the landmarks stage's file came from (`side_of`'s sources),
-/// if the file says.
-fn read_side_source(path: &Path) -> Option<&'static str> {
-    let text = crate::io_util::read_text(path).ok()?;
-    let doc: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let recorded = doc.get("side_source")?.as_str()?;
-    SIDE_SOURCES.into_iter().find(|s| *s == recorded)
+/// What a landmarks artefact keeps beside the landmarks.
+#[derive(Default)]
+struct Recorded {
+    /// Where its side came from (one of `side_of`'s sources).
+    side_source: Option<&'static str>,
+    /// The proposal record, if its landmarks were proposed.
+    proposal: Option<serde_json::Value>,
 }
 
-fn read_proposal_record(path: &Path) -> Option<serde_json::Value> {
-    let text = crate::io_util::read_text(path).ok()?;
-    let mut doc: serde_json::Value = serde_json::from_str(&text).ok()?;
-    Some(doc.get_mut("proposal")?.take())
+fn read_recorded(path: &Path) -> Recorded {
+    let doc = crate::io_util::read_text(path)
+        .ok()
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok());
+    let Some(mut doc) = doc else {
+        return Recorded::default();
+    };
+    Recorded {
+        side_source: doc
+            .get("side_source")
+            .and_then(serde_json::Value::as_str)
+            .and_then(|recorded| SIDE_SOURCES.into_iter().find(|s| *s == recorded)),
+        proposal: doc.get_mut("proposal").map(serde_json::Value::take),
+    }
 }
 
 /// The patient's landmarks: proposed from the image (see [`AutoLandmarks`]), `--landmarks`,
