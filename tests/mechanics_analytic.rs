@@ -10,7 +10,7 @@ use faer::c64;
 use nalgebra::{Point3, Vector3};
 use otoatlas::fem::{
     CorotationalState, Dashpot, Elements, FemModel, FixedDofs, HarmonicSolver, MembraneMaterial,
-    PressureLoad, Rayleigh, SparseCholesky, SparsePattern, StaticLoads, StaticOptions,
+    PressureLoad, Rayleigh, RigidBodies, SparseCholesky, SparsePattern, StaticLoads, StaticOptions,
     StaticReport, StaticSolver, SweepOptions, TetMaterial,
 };
 use otoatlas::mesh::shapes::icosphere;
@@ -593,4 +593,133 @@ fn a_clamped_plate_converges_to_kirchhoff_from_above() {
     }
     let extrapolated = 2.0 * errors[3] - errors[2];
     assert!(extrapolated.abs() < 0.01, "{extrapolated} {errors:?}");
+}
+
+/// Rigid bodies in the harmonic solver (`HarmonicSolver::with_rigid_bodies`): a free block,
+/// every node on one body, on equal node springs and driven by equal forces translates as one
+/// mass on one spring, u = N F / (N k (1 + iωβ) − ω² ρV + iωαρV); and a cantilever whose
+/// outer half is one body answers as the same cantilever with that half a million times
+/// stiffer, solved node by node, through its first resonance.
+#[test]
+fn a_rigid_body_answers_as_its_mass_on_its_springs_and_as_the_stiff_limit() {
+    let block = BoxMesh::new([1.0, 1.0, 1.0], [2, 2, 2]);
+    let mat = TetMaterial {
+        youngs_modulus: 1.0e5,
+        poisson_ratio: 0.3,
+        density: 2.0e-3,
+    };
+    let model = tet_model(&block.nodes, &block.tets, mat);
+    let n = block.nodes.len();
+    let all = RigidBodies::new(&block.nodes, &vec![Some(0); n]).unwrap();
+    let rayleigh = Rayleigh {
+        mass: 15.0,
+        stiffness: 1e-4,
+    };
+    let k = 40.0;
+    let none = FixedDofs::from_nodes(n, &[]).unwrap();
+    let solver =
+        HarmonicSolver::with_rigid_bodies(&model, &none, &vec![k; n], &[], rayleigh, &all).unwrap();
+    assert_eq!(solver.unknowns(), 6);
+    let f = 0.5;
+    let force = vec![Vector3::z() * f; n];
+    let mass = mat.density * 1.0;
+    let natural = (n as f64 * k / mass).sqrt();
+    for omega in [0.0, 0.5 * natural, natural, 3.0 * natural] {
+        let u = solver.solve(omega, &force).unwrap();
+        let nk = n as f64 * k;
+        let exact = c64::new(n as f64 * f, 0.0)
+            / c64::new(
+                nk - omega * omega * mass,
+                omega * (rayleigh.stiffness * nk + rayleigh.mass * mass),
+            );
+        for d in &u {
+            assert!(
+                (d[2] - exact).norm() <= 1e-10 * exact.norm(),
+                "{d:?} vs {exact}"
+            );
+            assert!(d[0].norm() + d[1].norm() <= 1e-10 * exact.norm());
+        }
+    }
+
+    let beam = BoxMesh::new([4.0, 1.0, 1.0], [8, 2, 2]);
+    let n = beam.nodes.len();
+    let centroid_x = |t: &[u32; 4]| t.iter().map(|&v| beam.nodes[v as usize].x).sum::<f64>() / 4.0;
+    let outer: Vec<bool> = beam.tets.iter().map(|t| centroid_x(t) > 2.0).collect();
+    let mut body = vec![None; n];
+    for (t, _) in beam.tets.iter().zip(&outer).filter(|(_, o)| **o) {
+        t.iter().for_each(|&v| body[v as usize] = Some(0));
+    }
+    let index: Vec<u32> = outer.iter().map(|&o| u32::from(o)).collect();
+    let stiff = TetMaterial {
+        youngs_modulus: mat.youngs_modulus * 1e6,
+        ..mat
+    };
+    let model = |materials: &[TetMaterial]| {
+        FemModel::new(
+            &beam.nodes,
+            Elements {
+                cells: &beam.tets,
+                material_index: &index,
+                materials,
+            },
+            Elements::none(),
+        )
+        .unwrap()
+    };
+    let fixed = FixedDofs::from_nodes(n, &beam.nodes_on_plane(0, 0.0)).unwrap();
+    let tip = beam.nodes_on_plane(0, 4.0);
+    let dashpots: Vec<Dashpot> = tip
+        .iter()
+        .map(|&node| Dashpot {
+            node,
+            coefficient: 0.01,
+            direction: Vector3::z(),
+        })
+        .collect();
+    let springs = vec![0.0; n];
+    let bodies = RigidBodies::new(&beam.nodes, &body).unwrap();
+    let rigid = HarmonicSolver::with_rigid_bodies(
+        &model(&[mat, mat]),
+        &fixed,
+        &springs,
+        &dashpots,
+        rayleigh,
+        &bodies,
+    )
+    .unwrap();
+    let elastic =
+        HarmonicSolver::new(&model(&[mat, stiff]), &fixed, &springs, &dashpots, rayleigh).unwrap();
+    assert!(rigid.unknowns() < elastic.unknowns() / 2 + 6);
+    let mut force = vec![Vector3::zeros(); n];
+    for &v in &tip {
+        force[v as usize] = Vector3::new(0.0, 0.2, 1.0);
+    }
+    let first = lowest_eigenvalue(&model(&[mat, stiff]), &fixed).sqrt();
+    let norm = |u: &[[c64; 3]]| u.iter().flatten().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+    for omega in [0.1 * first, first, 2.0 * first] {
+        let (a, b) = (
+            rigid.solve(omega, &force).unwrap(),
+            elastic.solve(omega, &force).unwrap(),
+        );
+        let difference: Vec<[c64; 3]> = a
+            .iter()
+            .zip(&b)
+            .map(|(p, q)| [p[0] - q[0], p[1] - q[1], p[2] - q[2]])
+            .collect();
+        assert!(
+            norm(&difference) <= 1e-5 * norm(&b),
+            "ω = {omega}: {} relative",
+            norm(&difference) / norm(&b)
+        );
+        // the reduced sweep over the rigid unknowns: the same response
+        let sweep = rigid
+            .sweep(&[omega], &force, &SweepOptions::default())
+            .unwrap();
+        let swept: Vec<[c64; 3]> = sweep.responses[0]
+            .iter()
+            .zip(&a)
+            .map(|(p, q)| [p[0] - q[0], p[1] - q[1], p[2] - q[2]])
+            .collect();
+        assert!(norm(&swept) <= 1e-6 * norm(&a), "{:?}", sweep.report);
+    }
 }

@@ -9,63 +9,72 @@
 //! 250 Hz 11 dB above the atlas.
 //! (Higher frequencies also follow the patient's size, which the ±10 % phantoms vary.)
 //! `run` stores the package's validation in its manifest and report, unless switched off; its
-//! transfer function, from the reduced sweep, and the verdict's gates on it are those of the
-//! direct solves (one complex LU per frequency) to 1e-5 and 1e-3 dB.
+//! transfer function, with rigid ossicles and from the reduced sweep, is that of the direct
+//! solves (one complex LU per frequency) to 1e-5, and the verdict's gates on it pass or fail
+//! as those of the full model (elastic ossicles, direct solves, package and atlas alike).
 
 use crate::common;
 use otoatlas::atlas::{default_atlas, read_atlas};
-use otoatlas::mechanics::{MechanicalSystem, TfaOptions, TransferFunction, transfer_function};
+use otoatlas::mechanics::{
+    MechanicalSystem, Ossicles, TfaOptions, TransferFunction, transfer_function,
+};
 
 /// The transfer function of `atlas` at the 1/3 octaves 250-8000 Hz, one complex LU per
-/// frequency (the direct solves, not the reduced sweep `run` uses).
-fn direct_tf(atlas: &otoatlas::atlas::Atlas) -> TransferFunction {
+/// frequency (the direct solves, not the reduced sweep `run` uses), with the ossicles
+/// `ossicles`.
+fn direct_tf(atlas: &otoatlas::atlas::Atlas, ossicles: Ossicles) -> TransferFunction {
     let system = MechanicalSystem::new(atlas, atlas.nodes()).unwrap();
     let options = TfaOptions {
         reduced: None,
+        ossicles,
         ..TfaOptions::default()
     };
     transfer_function(&system, &options, &otoatlas::progress::Silent).unwrap()
 }
 
-/// The gates of `run`'s verdict on the transfer function (from the reduced sweep) recomputed
-/// from the direct solves of the package (`tf`) against the atlas's reference stored beside
-/// them: the same values to 1e-3 dB and degree, the same pass or fail.
-fn same_verdict_as_direct(case: &str, mechanics: &serde_json::Value, tf: &TransferFunction) {
-    let reference = &mechanics["reference"]["transfer_function"]["points"];
+/// The gates of `run`'s verdict on the transfer function (rigid ossicles, reduced sweep)
+/// recomputed from the full model (elastic ossicles, direct solves) of the package (`tf`)
+/// against the full model of the atlas (`atlas`): the same pass or fail at every gate, the
+/// values within 0.25 dB and 2.5 degrees (measured: BENCHMARKS.md, "The package check with
+/// rigid ossicles"). Returns the largest differences (dB, degrees).
+fn same_verdict_as_full(
+    case: &str,
+    mechanics: &serde_json::Value,
+    tf: &TransferFunction,
+    atlas: &TransferFunction,
+) -> (f64, f64) {
     let mut checked = 0;
+    let mut worst = (0.0f64, 0.0f64);
     for gate in mechanics["verdict"]["gates"].as_array().unwrap() {
         let name = gate["name"].as_str().unwrap();
         let Some((what, at)) = name.split_once(" vs atlas at ") else {
             continue;
         };
         let f: f64 = at.trim_end_matches(" Hz").parse().unwrap();
-        let point = tf.at(f).unwrap();
-        let r = reference
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| (p["frequency_hz"].as_f64().unwrap() - f).abs() < 1e-3 * f)
-            .unwrap();
-        let value = match what {
-            "|H_V|" => {
-                20.0 * (point.magnitude_um_s_per_pa / r["magnitude_um_s_per_pa"].as_f64().unwrap())
-                    .log10()
-            }
-            "phase" => point.phase_deg - r["phase_deg"].as_f64().unwrap(),
+        let (point, r) = (tf.at(f).unwrap(), atlas.at(f).unwrap());
+        let (value, tolerance, slot) = match what {
+            "|H_V|" => (
+                20.0 * (point.magnitude_um_s_per_pa / r.magnitude_um_s_per_pa).log10(),
+                0.25,
+                &mut worst.0,
+            ),
+            "phase" => (point.phase_deg - r.phase_deg, 2.5, &mut worst.1),
             _ => continue,
         };
         let (low, high) = (
             gate["low"].as_f64().unwrap(),
             gate["high"].as_f64().unwrap(),
         );
+        let difference = (value - gate["value"].as_f64().unwrap()).abs();
+        *slot = slot.max(difference);
         assert!(
-            (value - gate["value"].as_f64().unwrap()).abs() < 1e-3,
-            "{case} {name}: direct {value} vs {gate}"
+            difference < tolerance,
+            "{case} {name}: full model {value} vs {gate}"
         );
         assert_eq!(
             (low..=high).contains(&value),
             gate["passed"].as_bool().unwrap(),
-            "{case} {name}: direct {value} vs {gate}"
+            "{case} {name}: full model {value} vs {gate}"
         );
         checked += 1;
     }
@@ -73,12 +82,13 @@ fn same_verdict_as_direct(case: &str, mechanics: &serde_json::Value, tf: &Transf
         checked >= 16,
         "{case}: {checked} gates on the transfer function"
     );
+    worst
 }
 
 #[test]
 #[ignore = "heavy: runs the three sample cases and their transfer functions, 40 s in debug; scripts/test.sh runs it"]
 fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
-    let reference = direct_tf(&default_atlas().unwrap());
+    let reference = direct_tf(&default_atlas().unwrap(), Ossicles::Elastic);
     let (reference_peak, _) = reference.peak().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut faults = Vec::new();
@@ -94,9 +104,11 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         ]);
         assert!(o.status.success(), "{case}: {o:?}");
         let package = read_atlas(&out.join("package")).unwrap();
-        let tf = direct_tf(&package);
-        // run validated the package: the manifest holds this transfer function (from the
-        // reduced sweep: within 1e-5 of the direct solves), the report its verdict and charts
+        let rigid = direct_tf(&package, Ossicles::Rigid);
+        let tf = direct_tf(&package, Ossicles::Elastic);
+        // run validated the package: the manifest holds its transfer function with rigid
+        // ossicles (from the reduced sweep: within 1e-5 of the direct solves), the report its
+        // verdict and charts
         let manifest: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("package/manifest.json")).unwrap())
                 .unwrap();
@@ -104,7 +116,7 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
             .as_array()
             .unwrap();
         assert_eq!(stored.len(), 16, "{case}: 1/3 octaves 250-8000 Hz");
-        for p in &tf.points {
+        for p in &rigid.points {
             let row = stored
                 .iter()
                 .find(|r| (r[0].as_f64().unwrap() - p.frequency_hz).abs() < 1e-6)
@@ -118,7 +130,8 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         }
         let mechanics: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("mechanics.json")).unwrap()).unwrap();
-        same_verdict_as_direct(case, &mechanics, &tf);
+        let (db, degrees) = same_verdict_as_full(case, &mechanics, &tf, &reference);
+        println!("{case}: gates of the full model within {db:.3} dB and {degrees:.2} degrees");
         if case == "case-001" {
             package_commands(&out.join("package"), &manifest);
         }
@@ -159,6 +172,10 @@ fn package_commands(package: &std::path::Path, manifest: &serde_json::Value) {
         "{json}"
     );
     assert!(json["reference"]["transfer_function"].is_object(), "{json}");
+    // a package is checked as `run` checked it: with rigid ossicles, the atlas likewise
+    for of in [&json["mechanics"], &json["reference"]] {
+        assert_eq!(of["transfer_function"]["ossicles"], "rigid", "{json}");
+    }
     let stored = manifest["mechanics"]["transfer_function"]
         .as_array()
         .unwrap();

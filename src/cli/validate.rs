@@ -12,7 +12,7 @@ use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::{Anatomy, load_atlas};
 use crate::mechanics::{
-    Condition, Drive, DrumConvergence, DrumStudy, ValidationOptions, validate_atlas,
+    Condition, Drive, DrumConvergence, DrumStudy, Ossicles, ValidationOptions, validate_atlas,
     validate_package,
 };
 use crate::progress::Reporter;
@@ -66,6 +66,11 @@ pub struct ValidateArgs {
     /// embedded assets/anatomy.toml.
     #[arg(long, value_name = "FILE", requires = "convergence")]
     pub anatomy: Option<PathBuf>,
+    /// The ossicles in the transfer function's solves: elastic bone (the full model), or each
+    /// ossicle one rigid body (half the unknowns; what `run` checks a package with). Default:
+    /// rigid for a package (or --reference), elastic for an atlas against the literature.
+    #[arg(long, value_enum, value_name = "MODEL")]
+    pub ossicles: Option<Ossicles>,
     /// Write tf_magnitude.svg, tf_phase.svg and udsp.svg into this folder.
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
@@ -79,6 +84,12 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     options.tfa.drive = args.drive;
     options.eardrum_bending_mm = args.eardrum_bending;
     options.condition = args.condition;
+    let against_reference = args.package.is_some() || args.reference.is_some();
+    options.tfa.ossicles = args.ossicles.unwrap_or(if against_reference {
+        Ossicles::Rigid
+    } else {
+        Ossicles::Elastic
+    });
     let reference_dir = args
         .reference
         .as_deref()

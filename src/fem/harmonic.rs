@@ -20,30 +20,61 @@ use super::dynamics::{Rayleigh, non_negative};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
+use super::rigid::{Reduction, RigidBodies};
 use super::state::CorotationalState;
 
 /// Complex amplitude of one node's displacement (mm), x, y, z.
 pub type ComplexDisplacement = [c64; 3];
 
 /// Harmonic solver for one model, one set of fixed DOFs and one set of node springs and
-/// dashpots; immutable after construction, so frequencies can be solved in parallel.
+/// dashpots; immutable after construction, so frequencies can be solved in parallel. Its
+/// unknowns are the free DOFs, or with rigid bodies (`HarmonicSolver::with_rigid_bodies`) the
+/// free DOFs of no body and six per body.
 #[derive(Debug)]
 pub struct HarmonicSolver {
     pub(super) node_count: usize,
-    /// Reduced index → DOF.
-    pub(super) free: Vec<usize>,
-    /// The full (both triangles) reduced pattern with the real stiffness values.
+    /// The map from the unknowns to the DOFs.
+    pub(super) reduction: Reduction,
+    /// The full (both triangles) pattern of the unknowns with the real stiffness values.
     pub(super) stiffness: SparseColMat<usize, f64>,
-    /// Position of each reduced DOF's diagonal in the values.
-    pub(super) diagonal: Vec<usize>,
-    /// Lumped mass (g) of each reduced DOF.
-    pub(super) mass: Vec<f64>,
-    /// The dashpots' entries (g/s) between free DOFs, at their positions in the values.
-    dashpot: Vec<(usize, f64)>,
-    /// The same entries as (row, column, value) of the reduced system.
-    pub(super) dashpot_entries: Vec<(usize, usize, f64)>,
+    /// The mass matrix (g): diagonal, or with rigid bodies each body's 6 x 6 block.
+    pub(super) mass: OnPattern,
+    /// The dashpots' damping matrix (g/s).
+    pub(super) dashpot: OnPattern,
     pub(super) rayleigh: Rayleigh,
     factoriser: ComplexSymmetric,
+}
+
+/// A symmetric matrix whose entries lie in the solver's pattern: (row, column, value) and each
+/// entry's position in the pattern's values.
+#[derive(Debug)]
+pub(super) struct OnPattern {
+    entries: Vec<(usize, usize, f64)>,
+    positions: Vec<usize>,
+}
+
+impl OnPattern {
+    /// y = A x over the unknowns.
+    pub(super) fn times(&self, x: &[f64]) -> Vec<f64> {
+        let mut y = vec![0.0; x.len()];
+        for &(row, col, a) in &self.entries {
+            y[row] += a * x[col];
+        }
+        y
+    }
+}
+
+/// Sums the duplicates of (row, column, value) entries.
+fn merged(mut entries: Vec<(usize, usize, f64)>) -> Vec<(usize, usize, f64)> {
+    entries.sort_by_key(|&(r, c, _)| (c, r));
+    let mut out: Vec<(usize, usize, f64)> = Vec::with_capacity(entries.len());
+    for (r, c, v) in entries {
+        match out.last_mut() {
+            Some(last) if (last.0, last.1) == (r, c) => last.2 += v,
+            _ => out.push((r, c, v)),
+        }
+    }
+    out
 }
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
@@ -61,6 +92,21 @@ impl HarmonicSolver {
         node_stiffness: &[f64],
         dashpots: &[Dashpot],
         rayleigh: Rayleigh,
+    ) -> Result<Self, FemError> {
+        let none = RigidBodies::new(model.rest_positions(), &vec![None; model.node_count()])?;
+        Self::with_rigid_bodies(model, fixed, node_stiffness, dashpots, rayleigh, &none)
+    }
+
+    /// As [`HarmonicSolver::new`], with `bodies` moving rigidly (`fem::rigid`): the system
+    /// Tᵀ A T of the map T from the free DOFs of no body and six per body, without the
+    /// tetrahedra inside a body. No node of a body may have a fixed DOF.
+    pub fn with_rigid_bodies(
+        model: &FemModel,
+        fixed: &FixedDofs,
+        node_stiffness: &[f64],
+        dashpots: &[Dashpot],
+        rayleigh: Rayleigh,
+        bodies: &RigidBodies,
     ) -> Result<Self, FemError> {
         let n = model.node_count();
         for (what, expected, found) in [
@@ -80,80 +126,90 @@ impl HarmonicSolver {
         }
         check_dashpots(dashpots, n)?;
         rayleigh.validate()?;
-        let pattern = SparsePattern::new(model);
-        let mut state = CorotationalState::new(model);
-        state.update(model, model.rest_positions())?;
+        let reduction = Reduction::new(model.rest_positions(), fixed, bodies)?;
+        let elastic = model.without_rigid_tets(bodies)?;
+        let pattern = SparsePattern::new(&elastic);
+        let mut state = CorotationalState::new(&elastic);
+        state.update(&elastic, elastic.rest_positions())?;
         let mut lower = pattern.zero_values();
         let none_fixed = FixedDofs::from_nodes(n, &[])?;
         pattern.assemble(
-            model,
+            &elastic,
             &state,
             1.0,
             Some(node_stiffness),
             &none_fixed,
             &mut lower,
         )?;
-        let free: Vec<usize> = (0..3 * n).filter(|&d| !fixed.is_fixed(d)).collect();
-        let mut reduced = vec![usize::MAX; 3 * n];
-        for (r, &d) in free.iter().enumerate() {
-            reduced[d] = r;
-        }
+        // Tᵀ K T from the lower triangle of K: each entry and its mirror
         let sym = pattern.symbolic();
         let mut triplets = Vec::with_capacity(2 * lower.len());
         for col in 0..3 * n {
-            let rc = reduced[col];
-            if rc == usize::MAX {
-                continue;
-            }
-            for k in sym.col_ptr()[col]..sym.col_ptr()[col + 1] {
-                let rr = reduced[sym.row_idx()[k]];
-                if rr == usize::MAX {
-                    continue;
-                }
-                triplets.push(Triplet::new(rr, rc, lower[k]));
-                if rr != rc {
-                    triplets.push(Triplet::new(rc, rr, lower[k]));
-                }
-            }
-        }
-        let m = free.len();
-        let stiffness = SparseColMat::try_new_from_triplets(m, m, &triplets)
-            .map_err(|e| faer_error("harmonic pattern", e))?;
-        let s = stiffness.symbolic();
-        let masses = model.lumped_masses();
-        let mass = free.iter().map(|&d| masses[d / 3]).collect();
-        let position = |row: usize, col: usize| {
-            let rows = &s.row_idx()[s.col_ptr()[col]..s.col_ptr()[col + 1]];
-            // a node's diagonal block is in the pattern
-            s.col_ptr()[col] + rows.partition_point(|&r| r < row)
-        };
-        let diagonal = (0..m).map(|c| position(c, c)).collect();
-        let mut dashpot = Vec::with_capacity(9 * dashpots.len());
-        let mut dashpot_entries = Vec::with_capacity(9 * dashpots.len());
-        for d in dashpots {
-            let block = d.block();
-            for i in 0..3 {
-                for j in 0..3 {
-                    let (row, col) = (
-                        reduced[3 * d.node as usize + i],
-                        reduced[3 * d.node as usize + j],
-                    );
-                    if row != usize::MAX && col != usize::MAX {
-                        dashpot.push((position(row, col), block[(i, j)]));
-                        dashpot_entries.push((row, col, block[(i, j)]));
+            let tc = reduction.row(col);
+            let range = sym.col_ptr()[col]..sym.col_ptr()[col + 1];
+            for (&row, &k_value) in sym.row_idx()[range.clone()].iter().zip(&lower[range]) {
+                for &(i, a) in reduction.row(row) {
+                    for &(j, b) in tc {
+                        let v = a * k_value * b;
+                        triplets.push(Triplet::new(i, j, v));
+                        if row != col {
+                            triplets.push(Triplet::new(j, i, v));
+                        }
                     }
                 }
             }
         }
+        let masses = model.lumped_masses();
+        let mut mass = Vec::with_capacity(3 * n);
+        for d in 0..3 * n {
+            let row = reduction.row(d);
+            for &(i, a) in row {
+                for &(j, b) in row {
+                    mass.push((i, j, a * b * masses[d / 3]));
+                }
+            }
+        }
+        let mut damping = Vec::with_capacity(9 * dashpots.len());
+        for dp in dashpots {
+            let block = dp.block();
+            for p in 0..3 {
+                for q in 0..3 {
+                    let (dp_row, dp_col) = (3 * dp.node as usize + p, 3 * dp.node as usize + q);
+                    for &(i, a) in reduction.row(dp_row) {
+                        for &(j, b) in reduction.row(dp_col) {
+                            damping.push((i, j, a * block[(p, q)] * b));
+                        }
+                    }
+                }
+            }
+        }
+        let (mass, damping) = (merged(mass), merged(damping));
+        // the mass and dashpot entries belong to the pattern even where K has none
+        triplets.extend(
+            mass.iter()
+                .chain(&damping)
+                .map(|&(i, j, _)| Triplet::new(i, j, 0.0)),
+        );
+        let m = reduction.unknowns();
+        let stiffness = SparseColMat::try_new_from_triplets(m, m, &triplets)
+            .map_err(|e| faer_error("harmonic pattern", e))?;
+        let s = stiffness.symbolic();
+        let position = |row: usize, col: usize| {
+            let rows = &s.row_idx()[s.col_ptr()[col]..s.col_ptr()[col + 1]];
+            s.col_ptr()[col] + rows.partition_point(|&r| r < row)
+        };
+        let on_pattern = |entries: Vec<(usize, usize, f64)>| OnPattern {
+            positions: entries.iter().map(|&(i, j, _)| position(i, j)).collect(),
+            entries,
+        };
+        let (mass, dashpot) = (on_pattern(mass), on_pattern(damping));
         let factoriser = ComplexSymmetric::analyse(s)?;
         Ok(HarmonicSolver {
             node_count: n,
-            free,
+            reduction,
             stiffness,
-            diagonal,
             mass,
             dashpot,
-            dashpot_entries,
             rayleigh,
             factoriser,
         })
@@ -173,18 +229,19 @@ impl HarmonicSolver {
             .iter()
             .map(|&k| c64::new(k, omega * beta * k))
             .collect();
-        for (&p, &m) in self.diagonal.iter().zip(&self.mass) {
+        for (&p, &(_, _, m)) in self.mass.positions.iter().zip(&self.mass.entries) {
             values[p] += c64::new(-omega * omega * m, omega * self.rayleigh.mass * m);
         }
-        for &(p, c) in &self.dashpot {
+        for (&p, &(_, _, c)) in self.dashpot.positions.iter().zip(&self.dashpot.entries) {
             values[p] += c64::new(0.0, omega * c);
         }
         self.factoriser.with_factor(&values, body)
     }
 
-    /// Number of unknowns (free DOFs).
+    /// Number of unknowns (free DOFs, or with rigid bodies those of no body and six per
+    /// body).
     pub fn unknowns(&self) -> usize {
-        self.free.len()
+        self.reduction.unknowns()
     }
 
     /// Displacement amplitudes (mm, per node; zero on fixed DOFs) at angular frequency
@@ -209,24 +266,32 @@ impl HarmonicSolver {
             });
         }
         let mut rhs: Vec<c64> = self
-            .free
-            .iter()
-            .map(|&d| c64::new(force[d / 3][d % 3], 0.0))
+            .reduction
+            .restrict(|d| force[d / 3][d % 3])
+            .into_iter()
+            .map(|f| c64::new(f, 0.0))
             .collect();
         self.with_factor(omega, |solve| {
             solve(&mut rhs);
             Ok(())
         })?;
-        let mut out = vec![[c64::new(0.0, 0.0); 3]; self.node_count];
-        for (&d, u) in self.free.iter().zip(&rhs) {
-            if !(u.re.is_finite() && u.im.is_finite()) {
-                return Err(FemError::NonFinite {
-                    what: "harmonic displacement of DOF",
-                    index: d,
-                });
-            }
-            out[d / 3][d % 3] = *u;
+        if let Some(i) = rhs
+            .iter()
+            .position(|u| !(u.re.is_finite() && u.im.is_finite()))
+        {
+            return Err(FemError::NonFinite {
+                what: "harmonic displacement of unknown",
+                index: i,
+            });
         }
+        let out = self.expand(&rhs);
         Ok(out)
+    }
+
+    /// The nodes' displacement amplitudes T q of the unknowns `q` (zero on fixed DOFs).
+    pub(super) fn expand(&self, q: &[c64]) -> Vec<ComplexDisplacement> {
+        (0..self.node_count)
+            .map(|v| std::array::from_fn(|a| self.reduction.expand_at(q, 3 * v + a)))
+            .collect()
     }
 }

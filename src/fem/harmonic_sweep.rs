@@ -67,11 +67,12 @@ pub struct Sweep {
     pub report: SweepReport,
 }
 
-/// An orthonormal basis V (columns over the free DOFs) with K V and C V and the projections
+/// An orthonormal basis V (columns over the unknowns) with K V, M V and C V and the projections
 /// Vᵀ K V, Vᵀ M V, Vᵀ C V and Vᵀ F̂, grown one column at a time.
 struct Basis {
     v: Vec<Vec<f64>>,
     kv: Vec<Vec<f64>>,
+    mv: Vec<Vec<f64>>,
     cv: Vec<Vec<f64>>,
     /// Row-major r x r projections (symmetric).
     kr: Vec<Vec<f64>>,
@@ -89,6 +90,7 @@ impl Basis {
         Basis {
             v: Vec::new(),
             kv: Vec::new(),
+            mv: Vec::new(),
             cv: Vec::new(),
             kr: Vec::new(),
             mr: Vec::new(),
@@ -120,8 +122,8 @@ impl Basis {
         }
         w.iter_mut().for_each(|x| *x /= after);
         let kw = solver.stiffness_times(&w);
-        let cw = solver.damping_times(&w);
-        let mw: Vec<f64> = w.iter().zip(&solver.mass).map(|(x, m)| x * m).collect();
+        let cw = solver.dashpot.times(&w);
+        let mw = solver.mass.times(&w);
         let j = self.v.len();
         for i in 0..j {
             let (k, m, c) = (
@@ -146,6 +148,7 @@ impl Basis {
         self.fr.push(dot(&w, force));
         self.v.push(w);
         self.kv.push(kw);
+        self.mv.push(mw);
         self.cv.push(cw);
         Some(j)
     }
@@ -181,7 +184,7 @@ impl Basis {
             for d in 0..n {
                 let v = self.v[j][d];
                 u[d] += qj * v;
-                au[d] += ks * self.kv[j][d] + ms * (solver.mass[d] * v) + cs * self.cv[j][d];
+                au[d] += ks * self.kv[j][d] + ms * self.mv[j][d] + cs * self.cv[j][d];
             }
         }
         let residual = force
@@ -226,7 +229,7 @@ impl HarmonicSolver {
                 expected: "finite and > 0",
             });
         }
-        let f: Vec<f64> = self.free.iter().map(|&d| force[d / 3][d % 3]).collect();
+        let f = self.reduction.restrict(|d| force[d / 3][d % 3]);
         let force_norm = dot(&f, &f).sqrt();
         let zero = vec![[c64::new(0.0, 0.0); 3]; self.node_count];
         if force_norm == 0.0 {
@@ -281,11 +284,7 @@ impl HarmonicSolver {
             match result {
                 Some((residual, u)) if residual <= options.residual_tolerance => {
                     max_relative_residual = max_relative_residual.max(residual);
-                    let mut out = zero.clone();
-                    for (&d, x) in self.free.iter().zip(&u) {
-                        out[d / 3][d % 3] = *x;
-                    }
-                    responses.push(out);
+                    responses.push(self.expand(&u));
                 }
                 _ => {
                     direct_solves += 1;
@@ -322,19 +321,22 @@ impl HarmonicSolver {
                 let prev = &out[k - 1];
                 let (re, im): (Vec<f64>, Vec<f64>) = prev.iter().map(|z| (z.re, z.im)).unzip();
                 let (k_re, k_im) = (self.stiffness_times(&re), self.stiffness_times(&im));
-                let (c_re, c_im) = (self.damping_times(&re), self.damping_times(&im));
+                let (c_re, c_im) = (self.dashpot.times(&re), self.dashpot.times(&im));
+                let (m_re, m_im) = (self.mass.times(&re), self.mass.times(&im));
                 let mut rhs: Vec<c64> = (0..prev.len())
                     .map(|d| {
-                        let m = self.mass[d];
-                        let d_re = beta * k_re[d] + alpha * m * re[d] + c_re[d];
-                        let d_im = beta * k_im[d] + alpha * m * im[d] + c_im[d];
+                        let d_re = beta * k_re[d] + alpha * m_re[d] + c_re[d];
+                        let d_im = beta * k_im[d] + alpha * m_im[d] + c_im[d];
                         // −A₁u = −i D u + 2ω_s M u
-                        c64::new(d_im, -d_re) + prev[d] * (2.0 * shift * m)
+                        c64::new(d_im, -d_re) + c64::new(m_re[d], m_im[d]) * (2.0 * shift)
                     })
                     .collect();
                 if k >= 2 {
-                    for (r, (z, m)) in rhs.iter_mut().zip(out[k - 2].iter().zip(&self.mass)) {
-                        *r += *z * *m;
+                    let older = &out[k - 2];
+                    let (re, im): (Vec<f64>, Vec<f64>) = older.iter().map(|z| (z.re, z.im)).unzip();
+                    let (m_re, m_im) = (self.mass.times(&re), self.mass.times(&im));
+                    for (r, (a, b)) in rhs.iter_mut().zip(m_re.iter().zip(&m_im)) {
+                        *r += c64::new(*a, *b);
                     }
                 }
                 solve(&mut rhs);
@@ -344,7 +346,7 @@ impl HarmonicSolver {
         })
     }
 
-    /// K x over the free DOFs (the full symmetric pattern is stored).
+    /// K x over the unknowns (the full symmetric pattern is stored).
     fn stiffness_times(&self, x: &[f64]) -> Vec<f64> {
         let s = self.stiffness.symbolic();
         let values = self.stiffness.val();
@@ -353,15 +355,6 @@ impl HarmonicSolver {
             for k in s.col_ptr()[col]..s.col_ptr()[col + 1] {
                 y[s.row_idx()[k]] += values[k] * xc;
             }
-        }
-        y
-    }
-
-    /// C x over the free DOFs (the dashpots' blocks).
-    fn damping_times(&self, x: &[f64]) -> Vec<f64> {
-        let mut y = vec![0.0; x.len()];
-        for &(row, col, c) in &self.dashpot_entries {
-            y[row] += c * x[col];
         }
         y
     }

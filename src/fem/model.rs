@@ -12,6 +12,7 @@ use super::element::CorotElement;
 use super::error::FemError;
 use super::material::{MembraneMaterial, TetMaterial};
 use super::membrane::{MembraneElement, rest_membrane};
+use super::rigid::RigidBodies;
 use super::tet::{TetElement, rest_tet};
 
 /// One family of elements: node indices per cell, a material index per cell, the materials.
@@ -181,6 +182,21 @@ impl FemModel {
             &self.rest,
         );
         Ok(self)
+    }
+
+    /// The same model without the tetrahedra whose four nodes lie on one of `bodies` (they
+    /// carry no strain when the body moves rigidly; `fem::rigid`), with the same lumped masses.
+    pub fn without_rigid_tets(&self, bodies: &RigidBodies) -> Result<Self, FemError> {
+        if bodies.node_count() != self.node_count() {
+            return Err(FemError::LengthMismatch {
+                what: "rigid body of each node",
+                expected: self.node_count(),
+                found: bodies.node_count(),
+            });
+        }
+        let mut out = self.clone();
+        out.tets.retain(|t| !bodies.holds(&t.nodes));
+        Ok(out)
     }
 
     /// Number of bending hinges (interior membrane edges between bending triangles).

@@ -24,8 +24,9 @@ use nalgebra::{Point3, Vector3};
 
 use super::error::MechanicsError;
 use crate::atlas::materials::cochlear_damping_for;
+use crate::atlas::model::Part;
 use crate::atlas::model::{Atlas, sets};
-use crate::fem::{Dashpot, FemModel, FixedDofs, Rayleigh, Spring};
+use crate::fem::{Dashpot, FemModel, FixedDofs, Rayleigh, RigidBodies, Spring};
 
 /// 1 N/m in µN/mm.
 const N_PER_M_TO_UN_PER_MM: f64 = 1e3;
@@ -74,6 +75,10 @@ pub struct MechanicalSystem {
     /// Area of the lateral eardrum face (mm²) and of the medial footplate face (mm²).
     pub eardrum_area_mm2: f64,
     pub footplate_area_mm2: f64,
+    /// The ossicles as rigid bodies, for the reduced model of the package check
+    /// (`Ossicles::Rigid`): one body per bone of the nodes of its tetrahedra; a bone with a
+    /// fixed node, and a node already on another bone, stay elastic.
+    pub ossicles: RigidBodies,
 }
 
 fn set<'a, T>(
@@ -217,6 +222,7 @@ impl MechanicalSystem {
                 direction: footplate_normal,
             })
             .collect();
+        let ossicles = ossicle_bodies(atlas, nodes, &fixed)?;
         let tied = atlas.landmarks.umbo;
         let cell = atlas.mesh.tets.tets.get(tied.tet as usize).ok_or_else(|| {
             MechanicsError::BadAtlas {
@@ -243,8 +249,38 @@ impl MechanicalSystem {
             },
             eardrum_area_mm2: eardrum_area,
             footplate_area_mm2: fp_area,
+            ossicles,
         })
     }
+}
+
+/// The rigid bodies of `atlas`'s ossicles at `nodes` (`MechanicalSystem::ossicles`).
+fn ossicle_bodies(
+    atlas: &Atlas,
+    nodes: &[Point3<f64>],
+    fixed: &FixedDofs,
+) -> Result<RigidBodies, MechanicsError> {
+    let mut body_of: Vec<Option<u32>> = vec![None; nodes.len()];
+    let mut count = 0;
+    for part in Part::BONES {
+        let labels = atlas.labels_of(part);
+        let mut members = Vec::new();
+        for (cell, region) in atlas.mesh.tets.tets.iter().zip(&atlas.mesh.tets.regions) {
+            if labels.contains(region) {
+                members.extend(cell.iter().map(|&v| v as usize));
+            }
+        }
+        members.sort_unstable();
+        members.dedup();
+        let free = members
+            .iter()
+            .all(|&v| body_of.get(v) == Some(&None) && !fixed.is_fixed(3 * v));
+        if free && !members.is_empty() {
+            members.iter().for_each(|&v| body_of[v] = Some(count));
+            count += 1;
+        }
+    }
+    RigidBodies::new(nodes, &body_of).map_err(MechanicsError::solve("the ossicles' rigid bodies"))
 }
 
 impl MechanicalSystem {

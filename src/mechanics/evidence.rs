@@ -184,7 +184,7 @@ fn log_interpolate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mechanics::tfa::{Drive, TfPoint};
+    use crate::mechanics::tfa::{Drive, Ossicles, TfPoint};
 
     /// A transfer function that is Goode's geometric-mean curve times `gain`, with a phase of
     /// 72° + `phase` at every frequency.
@@ -210,6 +210,7 @@ mod tests {
         TransferFunction {
             drive: Drive::Eardrum,
             drive_pa: 1.0,
+            ossicles: Ossicles::Elastic,
             points,
         }
     }

@@ -33,6 +33,21 @@ pub enum Drive {
     Umbo,
 }
 
+/// How the ossicles move in the harmonic solves.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Ossicles {
+    /// Elastic bone, every node its own three unknowns: the full model (`validate`).
+    #[default]
+    Elastic,
+    /// Each ossicle one rigid body of six unknowns (`MechanicalSystem::ossicles`,
+    /// `fem::RigidBodies`); joints, ligaments, tendons and eardrum stay elastic. A model of
+    /// about half the unknowns, for the package check (docs/mechanics.md).
+    Rigid,
+}
+
 /// What to compute.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TfaOptions {
@@ -44,6 +59,7 @@ pub struct TfaOptions {
     /// each frequency (`fem::SweepOptions`, the default), or `None`: one sparse factorisation per
     /// frequency.
     pub reduced: Option<SweepOptions>,
+    pub ossicles: Ossicles,
 }
 
 impl Default for TfaOptions {
@@ -53,6 +69,7 @@ impl Default for TfaOptions {
             drive: Drive::Eardrum,
             drive_pa: DRIVE_PA,
             reduced: Some(SweepOptions::default()),
+            ossicles: Ossicles::Elastic,
         }
     }
 }
@@ -90,6 +107,9 @@ impl TfPoint {
 pub struct TransferFunction {
     pub drive: Drive,
     pub drive_pa: f64,
+    /// The ossicles' model the solves used.
+    #[serde(default)]
+    pub ossicles: Ossicles,
     pub points: Vec<TfPoint>,
 }
 
@@ -209,13 +229,23 @@ pub fn transfer_function(
             expected: "finite and > 0",
         });
     }
-    let solver = HarmonicSolver::new(
-        &system.model,
-        &system.fixed,
-        &system.node_stiffness,
-        &system.dashpots,
-        system.rayleigh,
-    )
+    let solver = match options.ossicles {
+        Ossicles::Elastic => HarmonicSolver::new(
+            &system.model,
+            &system.fixed,
+            &system.node_stiffness,
+            &system.dashpots,
+            system.rayleigh,
+        ),
+        Ossicles::Rigid => HarmonicSolver::with_rigid_bodies(
+            &system.model,
+            &system.fixed,
+            &system.node_stiffness,
+            &system.dashpots,
+            system.rayleigh,
+            &system.ossicles,
+        ),
+    }
     .map_err(MechanicsError::solve("harmonic system"))?;
     let force = drive_forces(system, options.drive, options.drive_pa);
     let count = options.frequencies_hz.len();
@@ -280,6 +310,7 @@ pub fn transfer_function(
     Ok(TransferFunction {
         drive: options.drive,
         drive_pa: options.drive_pa,
+        ossicles: options.ossicles,
         points,
     })
 }

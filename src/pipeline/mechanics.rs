@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::atlas::{Side, load_atlas};
 use crate::mechanics::{
-    Mechanics, StaticCurve, TfaOptions, TransferFunction, UdspOptions, Validation,
+    Mechanics, Ossicles, StaticCurve, TfaOptions, TransferFunction, UdspOptions, Validation,
     ValidationOptions, mechanics, validate_package_against,
 };
 
@@ -32,7 +32,7 @@ type ReferenceKey = (String, bool);
 static REFERENCES: LazyLock<Mutex<BTreeMap<ReferenceKey, Arc<Mechanics>>>> =
     LazyLock::new(|| Mutex::new(BTreeMap::new()));
 
-/// The embedded default atlas's transfer function (default `TfaOptions`) and static curve at
+/// The embedded default atlas's transfer function (`package_tfa`) and static curve at
 /// the gate pressures (`gate_udsp`), with the SHA-256 of the atlas they belong to, on each
 /// side.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -61,6 +61,7 @@ pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
         &atlas,
         atlas.nodes(),
         &ValidationOptions {
+            tfa: package_tfa(),
             udsp: Some(gate_udsp()),
             ..ValidationOptions::default()
         },
@@ -85,10 +86,21 @@ fn gate_udsp() -> UdspOptions {
     }
 }
 
-/// What `[validate]` asks for: the default 1/3-octave transfer function, and the gate
+/// The transfer function of the package check: the default 1/3 octaves with rigid ossicles
+/// (`Ossicles::Rigid`: half the unknowns of the full model, the same verdicts; docs/mechanics.md,
+/// "The package check").
+pub fn package_tfa() -> TfaOptions {
+    TfaOptions {
+        ossicles: Ossicles::Rigid,
+        ..TfaOptions::default()
+    }
+}
+
+/// What `[validate]` asks for: the package check's transfer function, and the gate
 /// pressures ±1, ±2, ±4 kPa when `static_pressure` is on.
 pub fn options(cfg: &ValidateConfig) -> ValidationOptions {
     ValidationOptions {
+        tfa: package_tfa(),
         udsp: cfg.static_pressure.then(gate_udsp),
         ..ValidationOptions::default()
     }
@@ -111,7 +123,7 @@ fn reference(
     if let Some(m) = cached(&key) {
         return Ok(m);
     }
-    let shippable = options.tfa == TfaOptions::default()
+    let shippable = options.tfa == package_tfa()
         && options.eardrum_bending_mm.is_none()
         && options.udsp.as_ref().is_none_or(|u| *u == gate_udsp());
     if shippable {

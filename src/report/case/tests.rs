@@ -394,11 +394,12 @@ fn landmark_warnings_are_shown_with_their_figures_and_flagged_at_the_top() {
 /// at 4 kHz (-6 dB: one gate fails); no static-pressure curve.
 fn validation() -> crate::mechanics::Validation {
     use crate::mechanics::{
-        Drive, Mechanics, StaticCurve, TfPoint, TransferFunction, relative_verdict,
+        Drive, Mechanics, Ossicles, StaticCurve, TfPoint, TransferFunction, relative_verdict,
     };
     let tf = |scale_4k: f64| TransferFunction {
         drive: Drive::Eardrum,
         drive_pa: 0.632,
+        ossicles: Ossicles::Rigid,
         points: [
             (250.0, 13.0, 68.0),
             (1000.0, 34.0, -16.0),
