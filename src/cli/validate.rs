@@ -85,11 +85,15 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     options.eardrum_bending_mm = args.eardrum_bending;
     options.condition = args.condition;
     let against_reference = args.package.is_some() || args.reference.is_some();
-    options.tfa.ossicles = args.ossicles.unwrap_or(if against_reference {
+    let ossicles = args.ossicles.unwrap_or(if against_reference {
         Ossicles::Rigid
     } else {
         Ossicles::Elastic
     });
+    options.tfa.ossicles = ossicles;
+    if let Some(udsp) = &mut options.udsp {
+        udsp.ossicles = ossicles;
+    }
     let reference_dir = args
         .reference
         .as_deref()

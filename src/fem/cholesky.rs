@@ -14,7 +14,7 @@ use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::assembly::SparsePattern;
@@ -84,13 +84,24 @@ impl SparseCholesky {
     pub fn analyse(pattern: &SparsePattern) -> Result<Self, FemError> {
         let (fwd, inv) = node_amd(pattern)?;
         let perm = PermRef::new_checked(&fwd, &inv, fwd.len());
-        let symbolic = factorize_symbolic_cholesky(
-            pattern.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Custom(perm),
-            variant::cholesky_params(),
-        )
-        .map_err(|e| faer_error("symbolic analysis", e))?;
+        Self::with_ordering(pattern.symbolic(), SymmetricOrdering::Custom(perm))
+    }
+
+    /// As [`SparseCholesky::analyse`] for any lower-triangle pattern (the diagonal included),
+    /// ordered by AMD on its entries (a reduced tangent, whose unknowns are not 3 per node).
+    pub(crate) fn analyse_lower(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+    ) -> Result<Self, FemError> {
+        Self::with_ordering(pattern, SymmetricOrdering::Amd)
+    }
+
+    fn with_ordering(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        ordering: SymmetricOrdering<'_, usize>,
+    ) -> Result<Self, FemError> {
+        let symbolic =
+            factorize_symbolic_cholesky(pattern, Side::Lower, ordering, variant::cholesky_params())
+                .map_err(|e| faer_error("symbolic analysis", e))?;
         let par = faer::get_global_parallelism();
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),

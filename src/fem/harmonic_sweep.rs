@@ -34,12 +34,13 @@ pub struct SweepOptions {
 
 impl Default for SweepOptions {
     /// A relative residual of 1e-3 keeps the stapes velocity of the default atlas and of the
-    /// sample packages within 1e-5 dB of the direct solves (docs/fem.md); eight coefficients
-    /// per shift make the first two shifts, factorised in parallel, enough for them.
+    /// sample packages within 1e-5 dB of the direct solves (docs/fem.md); ten coefficients
+    /// per shift make the first two shifts, factorised in parallel, enough for them, with
+    /// elastic or rigid ossicles (eight left case-003's rigid package a third shift).
     fn default() -> Self {
         SweepOptions {
             residual_tolerance: 1e-3,
-            moments_per_shift: 8,
+            moments_per_shift: 10,
             max_shifts: 8,
         }
     }

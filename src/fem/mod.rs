@@ -30,6 +30,7 @@ mod operator;
 mod pcg;
 mod pressure;
 mod rigid;
+mod rigid_statics;
 mod rotation;
 mod state;
 mod statics;

@@ -69,6 +69,11 @@ impl RigidBodies {
         self.centres.len()
     }
 
+    /// The centre of body `b` at rest (mm).
+    pub(crate) fn centre(&self, b: usize) -> Point3<f64> {
+        self.centres[b]
+    }
+
     /// Number of nodes the bodies were given for.
     pub fn node_count(&self) -> usize {
         self.body_of.len()
@@ -142,27 +147,46 @@ impl Reduction {
         let mut entries = Vec::with_capacity(3 * n);
         for (d, &own) in own.iter().enumerate() {
             start.push(entries.len());
-            let (v, axis) = (d / 3, d % 3);
-            match bodies.body_of(v) {
+            match bodies.body_of(d / 3) {
                 None if own != usize::MAX => entries.push((own, 1.0)),
                 None => {}
                 Some(b) => {
-                    let base = first_body + 6 * b;
-                    let r = rest[v] - bodies.centres[b];
-                    // u = t + θ × r, row `axis`
+                    // u = t + θ × r, row `axis`: t_axis, then θ_j r_k − θ_k r_j (`set_arms`)
+                    let (base, axis) = (first_body + 6 * b, d % 3);
                     let (j, k) = ((axis + 1) % 3, (axis + 2) % 3);
-                    entries.push((base + axis, 1.0));
-                    entries.push((base + 3 + j, r[k]));
-                    entries.push((base + 3 + k, -r[j]));
+                    entries.extend([(base + axis, 1.0), (base + 3 + j, 0.0), (base + 3 + k, 0.0)]);
                 }
             }
         }
         start.push(entries.len());
-        Ok(Reduction {
+        let mut reduction = Reduction {
             start,
             entries,
             unknowns,
-        })
+        };
+        reduction.set_arms(bodies, |v, b| rest[v] - bodies.centres[b]);
+        Ok(reduction)
+    }
+
+    /// Sets the rows of the bodies' nodes for arms `arm(node, body)` = x_v − (c + t), the
+    /// node's offset from its body's centre where the body now is (its rest offset at rest).
+    pub(crate) fn set_arms(
+        &mut self,
+        bodies: &RigidBodies,
+        arm: impl Fn(usize, usize) -> nalgebra::Vector3<f64>,
+    ) {
+        for v in 0..bodies.node_count() {
+            let Some(b) = bodies.body_of(v) else {
+                continue;
+            };
+            let r = arm(v, b);
+            for axis in 0..3 {
+                let (j, k) = ((axis + 1) % 3, (axis + 2) % 3);
+                let s = self.start[3 * v + axis];
+                self.entries[s + 1].1 = r[k];
+                self.entries[s + 2].1 = -r[j];
+            }
+        }
     }
 
     /// Number of reduced unknowns.

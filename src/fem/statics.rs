@@ -35,6 +35,8 @@
 //! iteration lowered the residual by less than the stall fraction (the inversion guard halving
 //! every step).
 
+use std::borrow::Cow;
+
 use nalgebra::{Point3, Vector3};
 
 use super::anderson::Anderson;
@@ -44,6 +46,8 @@ use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
 use super::pressure::PressureLoad;
+use super::rigid::RigidBodies;
+use super::rigid_statics::RigidUnknowns;
 use super::state::{CorotationalState, check_positions, first_failure};
 
 /// A zero-rest-length spring pulling `node` towards `target` (mm) with `stiffness` (µN/mm):
@@ -137,7 +141,11 @@ pub struct StaticReport {
 /// factorisation are built once here and reused by every solve.
 #[derive(Debug)]
 pub struct StaticSolver<'m> {
-    model: &'m FemModel,
+    /// The model, or with rigid bodies its elastic part (`FemModel::without_rigid_tets`).
+    model: Cow<'m, FemModel>,
+    /// The unknowns with rigid bodies (`StaticSolver::with_rigid_bodies`); `None`: every free
+    /// DOF.
+    rigid: Option<RigidUnknowns>,
     fixed: FixedDofs,
     pattern: SparsePattern,
     values: Vec<f64>,
@@ -172,7 +180,8 @@ impl<'m> StaticSolver<'m> {
         let pattern = SparsePattern::new(model);
         let cholesky = SparseCholesky::analyse(&pattern)?;
         Ok(StaticSolver {
-            model,
+            model: Cow::Borrowed(model),
+            rigid: None,
             fixed,
             values: pattern.zero_values(),
             pattern,
@@ -187,6 +196,31 @@ impl<'m> StaticSolver<'m> {
             factorised_pressure: None,
             residual_tolerance: None,
         })
+    }
+
+    /// A solver with `bodies` moving rigidly (`fem::rigid_statics`): its unknowns are the free
+    /// DOFs of no body and a translation and an exact rotation per body; the tetrahedra inside
+    /// a body are left out. No node of a body may have a fixed DOF.
+    pub fn with_rigid_bodies(
+        model: &'m FemModel,
+        fixed: FixedDofs,
+        bodies: &RigidBodies,
+    ) -> Result<Self, FemError> {
+        let mut solver = Self::new(model, fixed)?;
+        let elastic = model.without_rigid_tets(bodies)?;
+        solver.pattern = SparsePattern::new(&elastic);
+        solver.values = solver.pattern.zero_values();
+        solver.state = CorotationalState::new(&elastic);
+        let rigid = RigidUnknowns::new(
+            &solver.pattern,
+            model.rest_positions(),
+            &solver.fixed,
+            bodies,
+        )?;
+        solver.rhs = vec![0.0; rigid.unknowns()];
+        solver.model = Cow::Owned(elastic);
+        solver.rigid = Some(rigid);
+        Ok(solver)
     }
 
     /// The same solver judging equilibrium on the out-of-balance force too: a solve converges
@@ -263,7 +297,10 @@ impl<'m> StaticSolver<'m> {
         let carried = options.reuse_tangent_below > 0.0
             && self.factorised_pressure == Some(pressure.is_some())
             && self.previous_diagonal == self.tangent_diagonal;
-        self.state.update(self.model, x)?;
+        if let Some(rigid) = &mut self.rigid {
+            rigid.attach(x);
+        }
+        self.state.update(&self.model, x)?;
         if let Some(&first) = self.state.failed_elements().first() {
             return Err(FemError::InvertedState {
                 count: self.state.failed_elements().len(),
@@ -314,11 +351,19 @@ impl<'m> StaticSolver<'m> {
                 factorisations += 1;
                 anderson.clear();
             }
-            self.cholesky.solve_in_place(&mut self.rhs)?;
+            match &mut self.rigid {
+                Some(rigid) => rigid.solve_in_place(&mut self.rhs)?,
+                None => self.cholesky.solve_in_place(&mut self.rhs)?,
+            }
             if options.anderson_depth > 0 {
-                self.fixed_point.clear();
-                self.fixed_point
-                    .extend(x.iter().flat_map(|p| [p.x, p.y, p.z]));
+                match &self.rigid {
+                    Some(rigid) => rigid.iterate(x, &mut self.fixed_point),
+                    None => {
+                        self.fixed_point.clear();
+                        self.fixed_point
+                            .extend(x.iter().flat_map(|p| [p.x, p.y, p.z]));
+                    }
+                }
                 anderson.accelerate(&self.fixed_point, &mut self.rhs);
             }
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
@@ -361,11 +406,14 @@ impl<'m> StaticSolver<'m> {
         halvings: usize,
         relative_residual: f64,
     ) -> StaticReport {
-        let max_residual = self
-            .rhs
-            .chunks_exact(3)
-            .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
-            .fold(0.0, f64::max);
+        let max_residual = match &self.rigid {
+            Some(rigid) => rigid.max_residual(&self.forces),
+            None => self
+                .rhs
+                .chunks_exact(3)
+                .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
+                .fold(0.0, f64::max),
+        };
         StaticReport {
             iterations,
             factorisations,
@@ -380,7 +428,7 @@ impl<'m> StaticSolver<'m> {
     /// stress stiffness under a pressure load, and factorises it.
     fn factorise_tangent(&mut self, x: &[Point3<f64>], pressure: bool) -> Result<(), FemError> {
         self.pattern.assemble(
-            self.model,
+            &self.model,
             &self.state,
             1.0,
             Some(&self.tangent_diagonal),
@@ -389,7 +437,7 @@ impl<'m> StaticSolver<'m> {
         )?;
         if pressure {
             self.pattern.add_membrane_stress_stiffness(
-                self.model,
+                &self.model,
                 x,
                 &self.state,
                 1.0,
@@ -398,7 +446,10 @@ impl<'m> StaticSolver<'m> {
             )?;
         }
         self.factorised_pressure = None;
-        self.cholesky.factorise(self.pattern.matrix(&self.values))?;
+        match &mut self.rigid {
+            Some(rigid) => rigid.factorise(&self.pattern, &self.values)?,
+            None => self.cholesky.factorise(self.pattern.matrix(&self.values))?,
+        }
         self.factorised_pressure = Some(pressure);
         Ok(())
     }
@@ -475,21 +526,33 @@ impl<'m> StaticSolver<'m> {
         if let Some(p) = pressure {
             p.add_forces(x, &mut self.forces);
         }
-        let load = self
-            .forces
-            .iter()
-            .flat_map(|f| f.iter())
-            .enumerate()
-            .filter(|(d, _)| !self.fixed.is_fixed(*d))
-            .map(|(_, f)| f * f)
-            .sum::<f64>()
-            .sqrt();
+        let load = match &self.rigid {
+            // the load on the unknowns: each body's net force and moment
+            Some(rigid) => {
+                rigid.restrict(&self.forces, &mut self.rhs);
+                self.rhs.iter().map(|f| f * f).sum::<f64>().sqrt()
+            }
+            None => self
+                .forces
+                .iter()
+                .flat_map(|f| f.iter())
+                .enumerate()
+                .filter(|(d, _)| !self.fixed.is_fixed(*d))
+                .map(|(_, f)| f * f)
+                .sum::<f64>()
+                .sqrt(),
+        };
         self.state
-            .add_elastic_forces(self.model, &mut self.forces)?;
-        for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
-            r.copy_from_slice(f.as_slice());
+            .add_elastic_forces(&self.model, &mut self.forces)?;
+        match &self.rigid {
+            Some(rigid) => rigid.restrict(&self.forces, &mut self.rhs),
+            None => {
+                for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
+                    r.copy_from_slice(f.as_slice());
+                }
+                self.fixed.zero_fixed(&mut self.rhs);
+            }
         }
-        self.fixed.zero_fixed(&mut self.rhs);
         Ok(load)
     }
 
@@ -504,26 +567,42 @@ impl<'m> StaticSolver<'m> {
         let mut alpha = 1.0;
         let mut culprit = ElementId::Tet(0);
         for halvings in 0..=max_halvings {
-            self.trial.clear();
-            self.trial.extend(
-                x.iter()
-                    .zip(self.rhs.chunks_exact(3))
-                    .map(|(p, d)| p + Vector3::new(d[0], d[1], d[2]) * alpha),
-            );
+            match &mut self.rigid {
+                Some(rigid) => rigid.trial_positions(x, &self.rhs, alpha, &mut self.trial),
+                None => {
+                    self.trial.clear();
+                    self.trial.extend(
+                        x.iter()
+                            .zip(self.rhs.chunks_exact(3))
+                            .map(|(p, d)| p + Vector3::new(d[0], d[1], d[2]) * alpha),
+                    );
+                }
+            }
             // a rejected trial costs a determinant per element, not a state update
-            check_positions(self.model, &self.trial)?;
-            if let Some(failed) = first_failure(self.model, &self.trial) {
+            check_positions(&self.model, &self.trial)?;
+            if let Some(failed) = first_failure(&self.model, &self.trial) {
                 culprit = failed;
                 alpha *= 0.5;
                 continue;
             }
-            self.state.update(self.model, &self.trial)?;
+            self.state.update(&self.model, &self.trial)?;
+            let largest = match &self.rigid {
+                // a body's nodes move by its turn as well as its translation
+                Some(_) => x
+                    .iter()
+                    .zip(&self.trial)
+                    .map(|(a, b)| (b - a).norm())
+                    .fold(0.0, f64::max),
+                None => self
+                    .rhs
+                    .chunks_exact(3)
+                    .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
+                    .fold(0.0, f64::max),
+            };
             x.copy_from_slice(&self.trial);
-            let largest = self
-                .rhs
-                .chunks_exact(3)
-                .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
-                .fold(0.0, f64::max);
+            if let Some(rigid) = &mut self.rigid {
+                rigid.accept();
+            }
             return Ok((largest, halvings));
         }
         Err(FemError::StepRejected {

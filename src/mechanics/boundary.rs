@@ -21,6 +21,7 @@
 //! vestibule). Units mm-g-s (µN, Pa).
 
 use nalgebra::{Point3, Vector3};
+use serde::Serialize;
 
 use super::error::MechanicsError;
 use crate::atlas::materials::cochlear_damping_for;
@@ -252,6 +253,22 @@ impl MechanicalSystem {
             ossicles,
         })
     }
+}
+
+/// How the ossicles move in the checks' solves.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Ossicles {
+    /// Elastic bone, every node its own three unknowns: the full model (`validate`).
+    #[default]
+    Elastic,
+    /// Each ossicle one rigid body of six unknowns (`MechanicalSystem::ossicles`,
+    /// `fem::RigidBodies`; in the static curve its rotation taken exactly); joints,
+    /// ligaments, tendons and eardrum stay elastic. A model of about half the unknowns, for
+    /// the package check (docs/mechanics.md).
+    Rigid,
 }
 
 /// The rigid bodies of `atlas`'s ossicles at `nodes` (`MechanicalSystem::ossicles`).

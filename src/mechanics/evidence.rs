@@ -184,7 +184,8 @@ fn log_interpolate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mechanics::tfa::{Drive, Ossicles, TfPoint};
+    use crate::mechanics::Ossicles;
+    use crate::mechanics::tfa::{Drive, TfPoint};
 
     /// A transfer function that is Goode's geometric-mean curve times `gain`, with a phase of
     /// 72° + `phase` at every frequency.

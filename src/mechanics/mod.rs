@@ -16,12 +16,12 @@ pub mod udsp;
 pub mod validate;
 pub mod verdict;
 
-pub use boundary::{MechanicalSystem, TiedPoint};
+pub use boundary::{MechanicalSystem, Ossicles, TiedPoint};
 pub use condition::{Condition, FIXATION_FACTOR};
 pub use convergence::{ConvergenceLevel, DrumConvergence, DrumStudy};
 pub use error::MechanicsError;
 pub use evidence::{Evidence, EvidencePoint, evidence};
-pub use tfa::{Drive, Ossicles, TfPoint, TfaOptions, TransferFunction, transfer_function};
+pub use tfa::{Drive, TfPoint, TfaOptions, TransferFunction, transfer_function};
 pub use udsp::{StaticCurve, UdspOptions, UdspPoint, static_pressure_curve};
 pub use validate::{
     Mechanics, Validation, ValidationOptions, mechanics, validate_atlas, validate_package,

@@ -15,7 +15,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::boundary::MechanicalSystem;
+use super::boundary::{MechanicalSystem, Ossicles};
 use super::error::MechanicsError;
 use crate::fem::{ComplexDisplacement, HarmonicSolver, PressureLoad, SweepOptions};
 use crate::progress::Reporter;
@@ -31,21 +31,6 @@ pub enum Drive {
     Eardrum,
     /// The eardrum's total force (pressure × area) applied at the umbo, medially.
     Umbo,
-}
-
-/// How the ossicles move in the harmonic solves.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize, clap::ValueEnum,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum Ossicles {
-    /// Elastic bone, every node its own three unknowns: the full model (`validate`).
-    #[default]
-    Elastic,
-    /// Each ossicle one rigid body of six unknowns (`MechanicalSystem::ossicles`,
-    /// `fem::RigidBodies`); joints, ligaments, tendons and eardrum stay elastic. A model of
-    /// about half the unknowns, for the package check (docs/mechanics.md).
-    Rigid,
 }
 
 /// What to compute.

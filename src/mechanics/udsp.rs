@@ -20,7 +20,7 @@
 use rayon::join;
 use serde::{Deserialize, Serialize};
 
-use super::boundary::MechanicalSystem;
+use super::boundary::{MechanicalSystem, Ossicles};
 use super::error::MechanicsError;
 use crate::fem::{PressureLoad, StaticLoads, StaticOptions, StaticSolver};
 use crate::progress::{Reporter, Task};
@@ -68,6 +68,8 @@ pub struct UdspOptions {
     /// Anderson acceleration of the chord steps (`StaticOptions::anderson_depth`): past
     /// iterations mixed into each; 0 takes the plain steps.
     pub anderson_depth: usize,
+    /// The ossicles' model (`Ossicles::Rigid`: `StaticSolver::with_rigid_bodies`).
+    pub ossicles: Ossicles,
 }
 
 impl Default for UdspOptions {
@@ -83,6 +85,7 @@ impl Default for UdspOptions {
             tangent_shift: 100.0,
             reuse_tangent_below: REUSE_TANGENT_BELOW,
             anderson_depth: ANDERSON_DEPTH,
+            ossicles: Ossicles::Elastic,
         }
     }
 }
@@ -104,6 +107,9 @@ pub struct UdspPoint {
 /// The umbo displacement curve, sorted by pressure.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct StaticCurve {
+    /// The ossicles' model the solves used.
+    #[serde(default)]
+    pub ossicles: Ossicles,
     pub points: Vec<UdspPoint>,
     /// Where and why loading stopped short (an increment without equilibrium), if it did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -196,6 +202,7 @@ pub fn static_pressure_curve(
     task.finish(&format!("{} static pressures solved", points.len() - 1));
     let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
     Ok(StaticCurve {
+        ossicles: options.ossicles,
         points,
         failure: (!failures.is_empty()).then(|| failures.join("; ")),
     })
@@ -211,7 +218,13 @@ fn solve_branch(
 ) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
-    let mut solver = StaticSolver::new(&system.model, system.fixed.clone())
+    let solver = match options.ossicles {
+        Ossicles::Elastic => StaticSolver::new(&system.model, system.fixed.clone()),
+        Ossicles::Rigid => {
+            StaticSolver::with_rigid_bodies(&system.model, system.fixed.clone(), &system.ossicles)
+        }
+    };
+    let mut solver = solver
         .and_then(|s| s.with_residual_tolerance(options.residual_tolerance))
         .map_err(MechanicsError::solve("static solver"))?;
     let loads = StaticLoads {

@@ -82,6 +82,7 @@ fn gate_udsp() -> UdspOptions {
     UdspOptions {
         pressures_pa: crate::mechanics::udsp::GATE_PRESSURES_PA.to_vec(),
         tolerance_mm: 1e-4,
+        ossicles: Ossicles::Rigid,
         ..UdspOptions::default()
     }
 }
