@@ -144,6 +144,9 @@ fn sample_case_packages_keep_the_atlas_low_frequency_mechanics() {
         }
         let html = std::fs::read_to_string(out.join("report.html")).unwrap();
         assert!(html.contains("Mechanics: consistency with the atlas"));
+        // the page and the manifest say which model of the ossicles the check used
+        assert!(html.contains("each ossicle as one rigid body"));
+        assert_eq!(manifest["mechanics"]["ossicles"], "rigid");
         assert!(html.contains("Goode et al. 1994 band"));
         assert!(out.join("mechanics.json").is_file());
         for f in [250.0, 500.0] {

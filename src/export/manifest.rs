@@ -15,7 +15,7 @@ use crate::config::Config;
 use crate::ear::Side;
 use crate::image::dicom::patient::PatientIdentity;
 use crate::io_util::sha256_hex;
-use crate::mechanics::{Condition, Validation};
+use crate::mechanics::{Condition, Ossicles, Validation};
 use crate::mesh::io::vtu::{VtuEncoding, vtu_string};
 use crate::register::rigid::SimilarityTransform;
 
@@ -107,6 +107,10 @@ pub struct MechanicsSummary {
     pub transfer_function: Vec<[f64; 3]>,
     /// Umbo displacement under static pressure: [Pa, µm]; empty when not computed.
     pub static_pressure: Vec<[f64; 2]>,
+    /// The ossicles' model of both checks (rigid bodies since 2026-11-28; elastic before,
+    /// which a manifest without the field means).
+    #[serde(default)]
+    pub ossicles: Ossicles,
 }
 
 impl MechanicsSummary {
@@ -137,6 +141,7 @@ impl MechanicsSummary {
                 .iter()
                 .map(|p| [p.pressure_pa, p.umbo_mm * 1e3])
                 .collect(),
+            ossicles: m.transfer_function.ossicles,
         }
     }
 }

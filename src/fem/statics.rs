@@ -143,13 +143,11 @@ pub struct StaticReport {
 pub struct StaticSolver<'m> {
     /// The model, or with rigid bodies its elastic part (`FemModel::without_rigid_tets`).
     model: Cow<'m, FemModel>,
-    /// The unknowns with rigid bodies (`StaticSolver::with_rigid_bodies`); `None`: every free
-    /// DOF.
-    rigid: Option<RigidUnknowns>,
+    /// The unknowns and the tangent's factorisation on them.
+    unknowns: Unknowns,
     fixed: FixedDofs,
     pattern: SparsePattern,
     values: Vec<f64>,
-    cholesky: SparseCholesky,
     state: CorotationalState,
     forces: Vec<Vector3<f64>>,
     rhs: Vec<f64>,
@@ -159,7 +157,7 @@ pub struct StaticSolver<'m> {
     tangent_diagonal: Vec<f64>,
     /// `tangent_diagonal` of the previous solve, to tell whether its tangent carries over.
     previous_diagonal: Vec<f64>,
-    /// Whether `cholesky` holds a factorised tangent, and if so whether with the pressure's
+    /// Whether `unknowns` holds a factorised tangent, and if so whether with the pressure's
     /// stress stiffness.
     factorised_pressure: Option<bool>,
     /// Converged only when |residual| ≤ this × |load| (the module doc); `None` judges on the
@@ -167,35 +165,27 @@ pub struct StaticSolver<'m> {
     residual_tolerance: Option<f64>,
 }
 
+/// What the solver's unknowns are, and the factorisation of the tangent on them.
+#[derive(Debug)]
+enum Unknowns {
+    /// Every free DOF: the tangent's own Cholesky.
+    Dofs(Box<SparseCholesky>),
+    /// The free DOFs of no body and six per body (`StaticSolver::with_rigid_bodies`).
+    Rigid(Box<RigidUnknowns>),
+}
+
 impl<'m> StaticSolver<'m> {
     /// A solver with the given fixed DOFs (see `FixedDofs::from_nodes`).
     pub fn new(model: &'m FemModel, fixed: FixedDofs) -> Result<Self, FemError> {
-        if fixed.len() != model.dof_count() {
-            return Err(FemError::LengthMismatch {
-                what: "fixed DOF mask",
-                expected: model.dof_count(),
-                found: fixed.len(),
-            });
-        }
+        Self::check_fixed(model, &fixed)?;
         let pattern = SparsePattern::new(model);
         let cholesky = SparseCholesky::analyse(&pattern)?;
-        Ok(StaticSolver {
-            model: Cow::Borrowed(model),
-            rigid: None,
+        Ok(Self::build(
+            Cow::Borrowed(model),
             fixed,
-            values: pattern.zero_values(),
             pattern,
-            cholesky,
-            state: CorotationalState::new(model),
-            forces: vec![Vector3::zeros(); model.node_count()],
-            rhs: vec![0.0; model.dof_count()],
-            trial: Vec::with_capacity(model.node_count()),
-            fixed_point: Vec::with_capacity(3 * model.node_count()),
-            tangent_diagonal: vec![0.0; model.node_count()],
-            previous_diagonal: vec![0.0; model.node_count()],
-            factorised_pressure: None,
-            residual_tolerance: None,
-        })
+            Unknowns::Dofs(Box::new(cholesky)),
+        ))
     }
 
     /// A solver with `bodies` moving rigidly (`fem::rigid_statics`): its unknowns are the free
@@ -206,21 +196,56 @@ impl<'m> StaticSolver<'m> {
         fixed: FixedDofs,
         bodies: &RigidBodies,
     ) -> Result<Self, FemError> {
-        let mut solver = Self::new(model, fixed)?;
+        Self::check_fixed(model, &fixed)?;
         let elastic = model.without_rigid_tets(bodies)?;
-        solver.pattern = SparsePattern::new(&elastic);
-        solver.values = solver.pattern.zero_values();
-        solver.state = CorotationalState::new(&elastic);
-        let rigid = RigidUnknowns::new(
-            &solver.pattern,
-            model.rest_positions(),
-            &solver.fixed,
-            bodies,
-        )?;
-        solver.rhs = vec![0.0; rigid.unknowns()];
-        solver.model = Cow::Owned(elastic);
-        solver.rigid = Some(rigid);
-        Ok(solver)
+        let pattern = SparsePattern::new(&elastic);
+        let rigid = RigidUnknowns::new(&pattern, model.rest_positions(), &fixed, bodies)?;
+        Ok(Self::build(
+            Cow::Owned(elastic),
+            fixed,
+            pattern,
+            Unknowns::Rigid(Box::new(rigid)),
+        ))
+    }
+
+    fn check_fixed(model: &FemModel, fixed: &FixedDofs) -> Result<(), FemError> {
+        if fixed.len() != model.dof_count() {
+            return Err(FemError::LengthMismatch {
+                what: "fixed DOF mask",
+                expected: model.dof_count(),
+                found: fixed.len(),
+            });
+        }
+        Ok(())
+    }
+
+    fn build(
+        model: Cow<'m, FemModel>,
+        fixed: FixedDofs,
+        pattern: SparsePattern,
+        unknowns: Unknowns,
+    ) -> Self {
+        let n = model.node_count();
+        let rhs = match &unknowns {
+            Unknowns::Dofs(_) => 3 * n,
+            Unknowns::Rigid(rigid) => rigid.unknowns(),
+        };
+        StaticSolver {
+            state: CorotationalState::new(&model),
+            model,
+            unknowns,
+            fixed,
+            values: pattern.zero_values(),
+            pattern,
+            forces: vec![Vector3::zeros(); n],
+            rhs: vec![0.0; rhs],
+            trial: Vec::with_capacity(n),
+            fixed_point: Vec::with_capacity(3 * n),
+            tangent_diagonal: vec![0.0; n],
+            previous_diagonal: vec![0.0; n],
+            factorised_pressure: None,
+            residual_tolerance: None,
+        }
     }
 
     /// The same solver judging equilibrium on the out-of-balance force too: a solve converges
@@ -297,7 +322,7 @@ impl<'m> StaticSolver<'m> {
         let carried = options.reuse_tangent_below > 0.0
             && self.factorised_pressure == Some(pressure.is_some())
             && self.previous_diagonal == self.tangent_diagonal;
-        if let Some(rigid) = &mut self.rigid {
+        if let Unknowns::Rigid(rigid) = &mut self.unknowns {
             rigid.attach(x);
         }
         self.state.update(&self.model, x)?;
@@ -351,14 +376,14 @@ impl<'m> StaticSolver<'m> {
                 factorisations += 1;
                 anderson.clear();
             }
-            match &mut self.rigid {
-                Some(rigid) => rigid.solve_in_place(&mut self.rhs)?,
-                None => self.cholesky.solve_in_place(&mut self.rhs)?,
+            match &mut self.unknowns {
+                Unknowns::Rigid(rigid) => rigid.solve_in_place(&mut self.rhs)?,
+                Unknowns::Dofs(cholesky) => cholesky.solve_in_place(&mut self.rhs)?,
             }
             if options.anderson_depth > 0 {
-                match &self.rigid {
-                    Some(rigid) => rigid.iterate(x, &mut self.fixed_point),
-                    None => {
+                match &self.unknowns {
+                    Unknowns::Rigid(rigid) => rigid.iterate(x, &mut self.fixed_point),
+                    Unknowns::Dofs(_) => {
                         self.fixed_point.clear();
                         self.fixed_point
                             .extend(x.iter().flat_map(|p| [p.x, p.y, p.z]));
@@ -406,9 +431,9 @@ impl<'m> StaticSolver<'m> {
         halvings: usize,
         relative_residual: f64,
     ) -> StaticReport {
-        let max_residual = match &self.rigid {
-            Some(rigid) => rigid.max_residual(&self.forces),
-            None => self
+        let max_residual = match &self.unknowns {
+            Unknowns::Rigid(rigid) => rigid.max_residual(&self.forces),
+            Unknowns::Dofs(_) => self
                 .rhs
                 .chunks_exact(3)
                 .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
@@ -446,9 +471,9 @@ impl<'m> StaticSolver<'m> {
             )?;
         }
         self.factorised_pressure = None;
-        match &mut self.rigid {
-            Some(rigid) => rigid.factorise(&self.pattern, &self.values)?,
-            None => self.cholesky.factorise(self.pattern.matrix(&self.values))?,
+        match &mut self.unknowns {
+            Unknowns::Rigid(rigid) => rigid.factorise(&self.pattern, &self.values)?,
+            Unknowns::Dofs(cholesky) => cholesky.factorise(self.pattern.matrix(&self.values))?,
         }
         self.factorised_pressure = Some(pressure);
         Ok(())
@@ -526,13 +551,13 @@ impl<'m> StaticSolver<'m> {
         if let Some(p) = pressure {
             p.add_forces(x, &mut self.forces);
         }
-        let load = match &self.rigid {
+        let load = match &self.unknowns {
             // the load on the unknowns: each body's net force and moment
-            Some(rigid) => {
+            Unknowns::Rigid(rigid) => {
                 rigid.restrict(&self.forces, &mut self.rhs);
                 self.rhs.iter().map(|f| f * f).sum::<f64>().sqrt()
             }
-            None => self
+            Unknowns::Dofs(_) => self
                 .forces
                 .iter()
                 .flat_map(|f| f.iter())
@@ -544,9 +569,9 @@ impl<'m> StaticSolver<'m> {
         };
         self.state
             .add_elastic_forces(&self.model, &mut self.forces)?;
-        match &self.rigid {
-            Some(rigid) => rigid.restrict(&self.forces, &mut self.rhs),
-            None => {
+        match &self.unknowns {
+            Unknowns::Rigid(rigid) => rigid.restrict(&self.forces, &mut self.rhs),
+            Unknowns::Dofs(_) => {
                 for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
                     r.copy_from_slice(f.as_slice());
                 }
@@ -567,9 +592,11 @@ impl<'m> StaticSolver<'m> {
         let mut alpha = 1.0;
         let mut culprit = ElementId::Tet(0);
         for halvings in 0..=max_halvings {
-            match &mut self.rigid {
-                Some(rigid) => rigid.trial_positions(x, &self.rhs, alpha, &mut self.trial),
-                None => {
+            match &mut self.unknowns {
+                Unknowns::Rigid(rigid) => {
+                    rigid.trial_positions(x, &self.rhs, alpha, &mut self.trial)
+                }
+                Unknowns::Dofs(_) => {
                     self.trial.clear();
                     self.trial.extend(
                         x.iter()
@@ -586,21 +613,21 @@ impl<'m> StaticSolver<'m> {
                 continue;
             }
             self.state.update(&self.model, &self.trial)?;
-            let largest = match &self.rigid {
+            let largest = match &self.unknowns {
                 // a body's nodes move by its turn as well as its translation
-                Some(_) => x
+                Unknowns::Rigid(_) => x
                     .iter()
                     .zip(&self.trial)
                     .map(|(a, b)| (b - a).norm())
                     .fold(0.0, f64::max),
-                None => self
+                Unknowns::Dofs(_) => self
                     .rhs
                     .chunks_exact(3)
                     .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
                     .fold(0.0, f64::max),
             };
             x.copy_from_slice(&self.trial);
-            if let Some(rigid) = &mut self.rigid {
+            if let Unknowns::Rigid(rigid) = &mut self.unknowns {
                 rigid.accept();
             }
             return Ok((largest, halvings));

@@ -4,7 +4,7 @@
 
 use super::super::html::{Figure, FigureContent, Page};
 use super::super::mechanics_plots::validation_plots;
-use crate::mechanics::Validation;
+use crate::mechanics::{Ossicles, Validation};
 
 pub(super) fn mechanics_section(page: &mut Page, v: Option<&Validation>) {
     page.heading("Mechanics: consistency with the atlas");
@@ -19,12 +19,19 @@ pub(super) fn mechanics_section(page: &mut Page, v: Option<&Validation>) {
         crate::mechanics::Condition::Normal => String::new(),
         c => format!(", both under the condition {}", c.name()),
     };
+    let ossicles = match v.mechanics.transfer_function.ossicles {
+        Ossicles::Rigid => {
+            " Both are computed with each ossicle as one rigid body (half the unknowns; the \
+             same verdicts as elastic bone on the sample cases, docs/mechanics.md)."
+        }
+        Ossicles::Elastic => " Both are computed with elastic ossicles (the full model).",
+    };
     page.paragraph(
         &format!(
             "These gates compare the package with the atlas it was registered from{condition}: \
              they show that the registration kept the atlas's behaviour, not that the model is \
              right. The atlas's evidence against measurements is in `otoatlas validate` \
-             (docs/mechanics.md, \"Evidence\")."
+             (docs/mechanics.md, \"Evidence\").{ossicles}"
         ),
         Some("note"),
     );
