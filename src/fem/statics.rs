@@ -27,6 +27,11 @@
 //! the steps taken with a reused tangent mix in the last few iterates, which speeds up the
 //! chord iteration's linear convergence; the history is cleared at each factorisation.
 //!
+//! Rigid bodies (`StaticSolver::with_rigid_bodies`, `fem::rigid_statics`): the unknowns are
+//! then the free DOFs of no body and a translation and an exact rotation per body; the
+//! residual and the tangent are restricted to them, the same iteration runs on them, and the
+//! largest nodal update counts a body's turn as well.
+//!
 //! Balance and stall (`StaticOptions::balanced_below`, `stalled_below`, off by default), for
 //! solves that only need the loads met: the solve is converged, without a further step, once
 //! the residual norm has fallen to that fraction of the first iteration's (the warped tangent
