@@ -144,21 +144,13 @@ impl HarmonicSolver {
         // Tᵀ K T from the lower triangle of K: each entry and its mirror
         let sym = pattern.symbolic();
         let mut triplets = Vec::with_capacity(2 * lower.len());
-        for col in 0..3 * n {
-            let tc = reduction.row(col);
-            let range = sym.col_ptr()[col]..sym.col_ptr()[col + 1];
-            for (&row, &k_value) in sym.row_idx()[range.clone()].iter().zip(&lower[range]) {
-                for &(i, a) in reduction.row(row) {
-                    for &(j, b) in tc {
-                        let v = a * k_value * b;
-                        triplets.push(Triplet::new(i, j, v));
-                        if row != col {
-                            triplets.push(Triplet::new(j, i, v));
-                        }
-                    }
-                }
+        reduction.lower_products(sym, |k, i, a, j, b, diagonal| {
+            let v = a * lower[k] * b;
+            triplets.push(Triplet::new(i, j, v));
+            if !diagonal {
+                triplets.push(Triplet::new(j, i, v));
             }
-        }
+        });
         let masses = model.lumped_masses();
         let mut mass = Vec::with_capacity(3 * n);
         for d in 0..3 * n {

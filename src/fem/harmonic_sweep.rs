@@ -318,6 +318,8 @@ impl HarmonicSolver {
             let mut u: Vec<c64> = force.iter().map(|&x| c64::new(x, 0.0)).collect();
             solve(&mut u);
             out.push(u);
+            // M u_{k−2}, the previous step's M u_{k−1}
+            let mut older: Option<(Vec<f64>, Vec<f64>)> = None;
             for k in 1..count {
                 let prev = &out[k - 1];
                 let (re, im): (Vec<f64>, Vec<f64>) = prev.iter().map(|z| (z.re, z.im)).unzip();
@@ -332,14 +334,12 @@ impl HarmonicSolver {
                         c64::new(d_im, -d_re) + c64::new(m_re[d], m_im[d]) * (2.0 * shift)
                     })
                     .collect();
-                if k >= 2 {
-                    let older = &out[k - 2];
-                    let (re, im): (Vec<f64>, Vec<f64>) = older.iter().map(|z| (z.re, z.im)).unzip();
-                    let (m_re, m_im) = (self.mass.times(&re), self.mass.times(&im));
-                    for (r, (a, b)) in rhs.iter_mut().zip(m_re.iter().zip(&m_im)) {
+                if let Some((o_re, o_im)) = &older {
+                    for (r, (a, b)) in rhs.iter_mut().zip(o_re.iter().zip(o_im)) {
                         *r += c64::new(*a, *b);
                     }
                 }
+                older = Some((m_re, m_im));
                 solve(&mut rhs);
                 out.push(rhs);
             }

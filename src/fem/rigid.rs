@@ -10,6 +10,7 @@
 //! Elements that join a body to anything else (joints, ligaments, the eardrum on the
 //! manubrium) stay elastic.
 
+use faer::sparse::SymbolicSparseColMatRef;
 use nalgebra::Point3;
 
 use super::error::FemError;
@@ -207,13 +208,41 @@ impl Reduction {
     /// Tᵀ f: the reduced load of full DOF values `f`.
     pub(crate) fn restrict(&self, f: impl Fn(usize) -> f64) -> Vec<f64> {
         let mut out = vec![0.0; self.unknowns];
+        self.restrict_into(f, &mut out);
+        out
+    }
+
+    /// [`Reduction::restrict`] into `out` (one entry per unknown, overwritten).
+    pub(crate) fn restrict_into(&self, f: impl Fn(usize) -> f64, out: &mut [f64]) {
+        out.fill(0.0);
         for d in 0..self.dof_count() {
             let fd = f(d);
             for &(i, c) in self.row(d) {
                 out[i] += c * fd;
             }
         }
-        out
+    }
+
+    /// Visits the products behind Tᵀ A T of a symmetric A given by its lower triangle
+    /// `lower` (over the full DOFs), in one fixed order: `visit(position of the entry in
+    /// `lower`, reduced row p, its coefficient, reduced column q, its coefficient, whether the
+    /// entry is on A's diagonal)`; the entry's mirror (off the diagonal) adds to (q, p).
+    pub(crate) fn lower_products(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        mut visit: impl FnMut(usize, usize, f64, usize, f64, bool),
+    ) {
+        for col in 0..lower.ncols() {
+            let tc = self.row(col);
+            for k in lower.col_ptr()[col]..lower.col_ptr()[col + 1] {
+                let row = lower.row_idx()[k];
+                for &(p, a) in self.row(row) {
+                    for &(q, b) in tc {
+                        visit(k, p, a, q, b, row == col);
+                    }
+                }
+            }
+        }
     }
 
     /// T q at full DOF `d`.

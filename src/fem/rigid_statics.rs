@@ -37,34 +37,12 @@ pub(crate) struct RigidUnknowns {
     /// The DOF of each unknown of no body (the unknowns of the bodies follow them).
     free_dofs: Vec<usize>,
     /// For each product of the full tangent's lower entries with T's rows, in the order
-    /// `products` visits them: its slot in `values` and how many times it counts (0 where
+    /// `Reduction::lower_products` visits them: its slot in `values` and how many times it counts (0 where
     /// its mirror is the lower entry, 2 where both are).
     plan: Vec<(usize, f64)>,
     pattern: SymbolicSparseColMat<usize>,
     values: Vec<f64>,
     cholesky: SparseCholesky,
-}
-
-/// Visits the products of the lower entries of `full` with the rows of `t`, in one fixed
-/// order: `visit(entry position, reduced row, its coefficient, reduced column, its
-/// coefficient, whether the entry is on the diagonal)`.
-fn products(
-    full: &SparsePattern,
-    t: &Reduction,
-    mut visit: impl FnMut(usize, usize, f64, usize, f64, bool),
-) {
-    let sym = full.symbolic();
-    for col in 0..sym.ncols() {
-        let tc = t.row(col);
-        for k in sym.col_ptr()[col]..sym.col_ptr()[col + 1] {
-            let row = sym.row_idx()[k];
-            for &(p, a) in t.row(row) {
-                for &(q, b) in tc {
-                    visit(k, p, a, q, b, row == col);
-                }
-            }
-        }
-    }
 }
 
 /// How many times the product at reduced (p, q) counts in the lower triangle (module doc).
@@ -101,7 +79,7 @@ impl RigidUnknowns {
             .collect();
         // the lower pattern: every product's lower slot, and the whole diagonal
         let mut slots: Vec<(usize, usize)> = (0..m).map(|i| (i, i)).collect();
-        products(full, &reduction, |_, p, _, q, _, diagonal| {
+        reduction.lower_products(full.symbolic(), |_, p, _, q, _, diagonal| {
             if multiplicity(p, q, diagonal) > 0.0 {
                 slots.push((p.min(q), p.max(q)));
             }
@@ -118,7 +96,7 @@ impl RigidUnknowns {
         let row_idx: Vec<usize> = slots.iter().map(|&(_, r)| r).collect();
         let pattern = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
         let mut plan = Vec::new();
-        products(full, &reduction, |_, p, _, q, _, diagonal| {
+        reduction.lower_products(full.symbolic(), |_, p, _, q, _, diagonal| {
             let (c, r) = (p.min(q), p.max(q));
             let rows = &pattern.row_idx()[pattern.col_ptr()[c]..pattern.col_ptr()[c + 1]];
             let slot = pattern.col_ptr()[c] + rows.partition_point(|&x| x < r);
@@ -178,7 +156,7 @@ impl RigidUnknowns {
 
     /// Tᵀ f of nodal forces `f` (fixed DOFs have no unknowns and drop out) into `out`.
     pub(crate) fn restrict(&self, f: &[Vector3<f64>], out: &mut [f64]) {
-        out.copy_from_slice(&self.reduction.restrict(|d| f[d / 3][d % 3]));
+        self.reduction.restrict_into(|d| f[d / 3][d % 3], out);
     }
 
     /// The iterate as one vector (for Anderson mixing): the free coordinates of `x`, then
@@ -230,7 +208,8 @@ impl RigidUnknowns {
         self.values.fill(0.0);
         let mut next = 0;
         let (plan, reduced) = (&self.plan, &mut self.values);
-        products(full, &self.reduction, |k, _, a, _, b, _| {
+        let lower = full.symbolic();
+        self.reduction.lower_products(lower, |k, _, a, _, b, _| {
             let (slot, times) = plan[next];
             next += 1;
             reduced[slot] += times * a * values[k] * b;
