@@ -79,8 +79,8 @@ fn merged(mut entries: Vec<(usize, usize, f64)>) -> Vec<(usize, usize, f64)> {
 
 /// The m x m matrix of the (row, column, value) entries `entries` (all below m), duplicates
 /// summed in their order: bucketed by column, then each column sorted by row. A counting sort
-/// instead of faer's `try_new_from_triplets`, which took 0.03 s of the rigid package check's
-/// 0.2 s transfer function for its half a million entries.
+/// instead of faer's `try_new_from_triplets`, which took 0.03 s for the rigid package
+/// check's half a million entries, timed alone (BENCHMARKS.md).
 fn summed_columns(m: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
     let mut start = vec![0usize; m + 1];
     for &(_, c, _) in entries {
