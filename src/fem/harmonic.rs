@@ -344,10 +344,9 @@ mod tests {
         let s = a.symbolic();
         assert_eq!(s.col_ptr(), &[0, 2, 2, 5]);
         assert_eq!(s.row_idx(), &[0, 2, 0, 1, 2]);
-        for c in 0..3 {
-            for k in s.col_ptr()[c]..s.col_ptr()[c + 1] {
-                assert_eq!(a.val()[k], dense[s.row_idx()[k]][c]);
-            }
+        for (k, &row) in s.row_idx().iter().enumerate() {
+            let col = s.col_ptr().partition_point(|&p| p <= k) - 1;
+            assert_eq!(a.val()[k], dense[row][col]);
         }
     }
 }
