@@ -33,6 +33,7 @@ mod rigid;
 mod rigid_statics;
 mod rotation;
 mod state;
+mod static_unknowns;
 mod statics;
 mod tet;
 mod variant;

@@ -54,6 +54,7 @@ use super::pressure::PressureLoad;
 use super::rigid::RigidBodies;
 use super::rigid_statics::RigidUnknowns;
 use super::state::{CorotationalState, check_positions, first_failure};
+use super::static_unknowns::Unknowns;
 
 /// A zero-rest-length spring pulling `node` towards `target` (mm) with `stiffness` (µN/mm):
 /// force k (target − x_node).
@@ -170,15 +171,6 @@ pub struct StaticSolver<'m> {
     residual_tolerance: Option<f64>,
 }
 
-/// What the solver's unknowns are, and the factorisation of the tangent on them.
-#[derive(Debug)]
-enum Unknowns {
-    /// Every free DOF: the tangent's own Cholesky.
-    Dofs(Box<SparseCholesky>),
-    /// The free DOFs of no body and six per body (`StaticSolver::with_rigid_bodies`).
-    Rigid(Box<RigidUnknowns>),
-}
-
 impl<'m> StaticSolver<'m> {
     /// A solver with the given fixed DOFs (see `FixedDofs::from_nodes`).
     pub fn new(model: &'m FemModel, fixed: FixedDofs) -> Result<Self, FemError> {
@@ -231,10 +223,7 @@ impl<'m> StaticSolver<'m> {
         unknowns: Unknowns,
     ) -> Self {
         let n = model.node_count();
-        let rhs = match &unknowns {
-            Unknowns::Dofs(_) => 3 * n,
-            Unknowns::Rigid(rigid) => rigid.unknowns(),
-        };
+        let rhs = unknowns.len(n);
         StaticSolver {
             state: CorotationalState::new(&model),
             model,
@@ -327,9 +316,7 @@ impl<'m> StaticSolver<'m> {
         let carried = options.reuse_tangent_below > 0.0
             && self.factorised_pressure == Some(pressure.is_some())
             && self.previous_diagonal == self.tangent_diagonal;
-        if let Unknowns::Rigid(rigid) = &mut self.unknowns {
-            rigid.attach(x);
-        }
+        self.unknowns.attach(x);
         self.state.update(&self.model, x)?;
         if let Some(&first) = self.state.failed_elements().first() {
             return Err(FemError::InvertedState {
@@ -381,19 +368,9 @@ impl<'m> StaticSolver<'m> {
                 factorisations += 1;
                 anderson.clear();
             }
-            match &mut self.unknowns {
-                Unknowns::Rigid(rigid) => rigid.solve_in_place(&mut self.rhs)?,
-                Unknowns::Dofs(cholesky) => cholesky.solve_in_place(&mut self.rhs)?,
-            }
+            self.unknowns.solve_in_place(&mut self.rhs)?;
             if options.anderson_depth > 0 {
-                match &self.unknowns {
-                    Unknowns::Rigid(rigid) => rigid.iterate(x, &mut self.fixed_point),
-                    Unknowns::Dofs(_) => {
-                        self.fixed_point.clear();
-                        self.fixed_point
-                            .extend(x.iter().flat_map(|p| [p.x, p.y, p.z]));
-                    }
-                }
+                self.unknowns.iterate(x, &mut self.fixed_point);
                 anderson.accelerate(&self.fixed_point, &mut self.rhs);
             }
             let (step, h) = self.guarded_step(x, iteration, options.max_halvings)?;
@@ -436,14 +413,7 @@ impl<'m> StaticSolver<'m> {
         halvings: usize,
         relative_residual: f64,
     ) -> StaticReport {
-        let max_residual = match &self.unknowns {
-            Unknowns::Rigid(rigid) => rigid.max_residual(&self.forces),
-            Unknowns::Dofs(_) => self
-                .rhs
-                .chunks_exact(3)
-                .map(|r| Vector3::new(r[0], r[1], r[2]).norm())
-                .fold(0.0, f64::max),
-        };
+        let max_residual = self.unknowns.max_residual(&self.rhs, &self.forces);
         StaticReport {
             iterations,
             factorisations,
@@ -476,10 +446,7 @@ impl<'m> StaticSolver<'m> {
             )?;
         }
         self.factorised_pressure = None;
-        match &mut self.unknowns {
-            Unknowns::Rigid(rigid) => rigid.factorise(&self.pattern, &self.values)?,
-            Unknowns::Dofs(cholesky) => cholesky.factorise(self.pattern.matrix(&self.values))?,
-        }
+        self.unknowns.factorise(&self.pattern, &self.values)?;
         self.factorised_pressure = Some(pressure);
         Ok(())
     }
@@ -556,33 +523,14 @@ impl<'m> StaticSolver<'m> {
         if let Some(p) = pressure {
             p.add_forces(x, &mut self.forces);
         }
-        let load = match &self.unknowns {
-            // the load on the unknowns: each body's net force and moment
-            Unknowns::Rigid(rigid) => {
-                rigid.restrict(&self.forces, &mut self.rhs);
-                self.rhs.iter().map(|f| f * f).sum::<f64>().sqrt()
-            }
-            Unknowns::Dofs(_) => self
-                .forces
-                .iter()
-                .flat_map(|f| f.iter())
-                .enumerate()
-                .filter(|(d, _)| !self.fixed.is_fixed(*d))
-                .map(|(_, f)| f * f)
-                .sum::<f64>()
-                .sqrt(),
-        };
+        // the load on the unknowns (zero on fixed DOFs, or each body's net force and moment)
+        self.unknowns
+            .restrict(&self.forces, &self.fixed, &mut self.rhs);
+        let load = self.rhs.iter().map(|f| f * f).sum::<f64>().sqrt();
         self.state
             .add_elastic_forces(&self.model, &mut self.forces)?;
-        match &self.unknowns {
-            Unknowns::Rigid(rigid) => rigid.restrict(&self.forces, &mut self.rhs),
-            Unknowns::Dofs(_) => {
-                for (r, f) in self.rhs.chunks_exact_mut(3).zip(&self.forces) {
-                    r.copy_from_slice(f.as_slice());
-                }
-                self.fixed.zero_fixed(&mut self.rhs);
-            }
-        }
+        self.unknowns
+            .restrict(&self.forces, &self.fixed, &mut self.rhs);
         Ok(load)
     }
 
@@ -597,19 +545,8 @@ impl<'m> StaticSolver<'m> {
         let mut alpha = 1.0;
         let mut culprit = ElementId::Tet(0);
         for halvings in 0..=max_halvings {
-            match &mut self.unknowns {
-                Unknowns::Rigid(rigid) => {
-                    rigid.trial_positions(x, &self.rhs, alpha, &mut self.trial)
-                }
-                Unknowns::Dofs(_) => {
-                    self.trial.clear();
-                    self.trial.extend(
-                        x.iter()
-                            .zip(self.rhs.chunks_exact(3))
-                            .map(|(p, d)| p + Vector3::new(d[0], d[1], d[2]) * alpha),
-                    );
-                }
-            }
+            self.unknowns
+                .trial_positions(x, &self.rhs, alpha, &mut self.trial);
             // a rejected trial costs a determinant per element, not a state update
             check_positions(&self.model, &self.trial)?;
             if let Some(failed) = first_failure(&self.model, &self.trial) {
@@ -618,23 +555,11 @@ impl<'m> StaticSolver<'m> {
                 continue;
             }
             self.state.update(&self.model, &self.trial)?;
-            let largest = match &self.unknowns {
-                // a body's nodes move by its turn as well as its translation
-                Unknowns::Rigid(_) => x
-                    .iter()
-                    .zip(&self.trial)
-                    .map(|(a, b)| (b - a).norm())
-                    .fold(0.0, f64::max),
-                Unknowns::Dofs(_) => self
-                    .rhs
-                    .chunks_exact(3)
-                    .map(|d| Vector3::new(d[0], d[1], d[2]).norm() * alpha)
-                    .fold(0.0, f64::max),
-            };
+            let largest = self
+                .unknowns
+                .largest_update(x, &self.trial, &self.rhs, alpha);
             x.copy_from_slice(&self.trial);
-            if let Unknowns::Rigid(rigid) = &mut self.unknowns {
-                rigid.accept();
-            }
+            self.unknowns.accept();
             return Ok((largest, halvings));
         }
         Err(FemError::StepRejected {
