@@ -15,6 +15,7 @@ mod anderson;
 mod assembly;
 pub(crate) mod bending;
 mod cholesky;
+mod complex_ldlt;
 mod complex_symmetric;
 mod dashpot;
 mod dynamics;
