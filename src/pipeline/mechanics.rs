@@ -75,13 +75,16 @@ pub fn compute_embedded_reference() -> Result<EmbeddedReference, Error> {
 }
 
 /// The static-pressure sweep of `[validate] static_pressure`: the gate pressures ±1, ±2,
-/// ±4 kPa with the default increments, converged to updates under 1e-4 mm (0.1 % of the
-/// umbo displacement at 1 kPa, against the gates' 25 %): 55 Newton iterations on the default
-/// atlas (`assets/reference_mechanics.json`, 2026-11-26).
+/// ±4 kPa with the default increments, each converged once a full step moves no node by
+/// 1e-3 mm and the out-of-balance force is at most 1 % of the load. The gates compare ratios
+/// within 25 %; on the sample packages these tolerances (instead of 1e-4 mm and 0.1 %, the
+/// full model's) move the umbo displacements by at most 1.6e-5 mm (1.2e-4 relative) and save
+/// a fifth of the Newton iterations (BENCHMARKS.md, "The package check: gate tolerances").
 fn gate_udsp() -> UdspOptions {
     UdspOptions {
         pressures_pa: crate::mechanics::udsp::GATE_PRESSURES_PA.to_vec(),
-        tolerance_mm: 1e-4,
+        tolerance_mm: 1e-3,
+        residual_tolerance: 1e-2,
         ossicles: Ossicles::Rigid,
         ..UdspOptions::default()
     }
