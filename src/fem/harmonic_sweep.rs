@@ -104,54 +104,61 @@ impl Basis {
         self.v.len()
     }
 
-    /// Orthogonalises `w` against the basis (modified Gram-Schmidt, twice) and adds it;
-    /// returns the added column, or `None` when `w` lies in the basis to rounding.
-    fn add(&mut self, solver: &HarmonicSolver, force: &[f64], mut w: Vec<f64>) -> Option<usize> {
-        let before = dot(&w, &w).sqrt();
-        if !(before.is_finite() && before > 0.0) {
-            return None;
-        }
-        for _ in 0..2 {
-            for v in &self.v {
-                let c = dot(v, &w);
-                w.iter_mut().zip(v).for_each(|(x, y)| *x -= c * y);
+    /// Orthogonalises each of `candidates` in turn against the basis (modified Gram-Schmidt,
+    /// twice) and adds it, skipping those that lie in the basis to rounding; then forms the
+    /// new columns' products with K, M and C and their projections, the columns side by side.
+    fn extend(&mut self, solver: &HarmonicSolver, force: &[f64], candidates: Vec<Vec<f64>>) {
+        let first = self.v.len();
+        for mut w in candidates {
+            let before = dot(&w, &w).sqrt();
+            if !(before.is_finite() && before > 0.0) {
+                continue;
             }
+            for _ in 0..2 {
+                for v in &self.v {
+                    let c = dot(v, &w);
+                    w.iter_mut().zip(v).for_each(|(x, y)| *x -= c * y);
+                }
+            }
+            let after = dot(&w, &w).sqrt();
+            if after <= 1e-10 * before {
+                continue;
+            }
+            w.iter_mut().for_each(|x| *x /= after);
+            self.v.push(w);
         }
-        let after = dot(&w, &w).sqrt();
-        if after <= 1e-10 * before {
-            return None;
+        let products: Vec<[Vec<f64>; 3]> = self.v[first..]
+            .par_iter()
+            .map(|w| {
+                [
+                    solver.stiffness_times(w),
+                    solver.mass.times(w),
+                    solver.dashpot.times(w),
+                ]
+            })
+            .collect();
+        // column j of the projections: its entries against every column up to j
+        let columns: Vec<[Vec<f64>; 3]> = (first..self.v.len())
+            .into_par_iter()
+            .zip(&products)
+            .map(|(j, [kw, mw, cw])| {
+                let against =
+                    |pw: &[f64]| -> Vec<f64> { self.v[..=j].iter().map(|v| dot(v, pw)).collect() };
+                [against(kw), against(mw), against(cw)]
+            })
+            .collect();
+        for (j, ([k, m, c], [kw, mw, cw])) in (first..).zip(columns.into_iter().zip(products)) {
+            for (of, column) in [(&mut self.kr, &k), (&mut self.mr, &m), (&mut self.cr, &c)] {
+                for (row, &x) in of.iter_mut().zip(column) {
+                    row.push(x);
+                }
+                of.push(column.clone());
+            }
+            self.fr.push(dot(&self.v[j], force));
+            self.kv.push(kw);
+            self.mv.push(mw);
+            self.cv.push(cw);
         }
-        w.iter_mut().for_each(|x| *x /= after);
-        let kw = solver.stiffness_times(&w);
-        let cw = solver.dashpot.times(&w);
-        let mw = solver.mass.times(&w);
-        let j = self.v.len();
-        for i in 0..j {
-            let (k, m, c) = (
-                dot(&self.v[i], &kw),
-                dot(&self.v[i], &mw),
-                dot(&self.v[i], &cw),
-            );
-            self.kr[i].push(k);
-            self.mr[i].push(m);
-            self.cr[i].push(c);
-        }
-        let row = |of: &Vec<Vec<f64>>, last: f64| {
-            let mut r: Vec<f64> = (0..j).map(|i| of[i][j]).collect();
-            r.push(last);
-            r
-        };
-        let (kjj, mjj, cjj) = (dot(&w, &kw), dot(&w, &mw), dot(&w, &cw));
-        let (krow, mrow, crow) = (row(&self.kr, kjj), row(&self.mr, mjj), row(&self.cr, cjj));
-        self.kr.push(krow);
-        self.mr.push(mrow);
-        self.cr.push(crow);
-        self.fr.push(dot(&w, force));
-        self.v.push(w);
-        self.kv.push(kw);
-        self.mv.push(mw);
-        self.cv.push(cw);
-        Some(j)
     }
 
     /// The reduced solution at `omega`, its relative residual on the full system and the
@@ -257,14 +264,13 @@ impl HarmonicSolver {
                 .map(|&shift| self.moments(&f, shift, options.moments_per_shift))
                 .collect::<Result<_, _>>()?;
             shifts.extend(&round);
-            for u in moments.iter().flatten() {
-                for part in [
+            let parts = moments.iter().flatten().flat_map(|u| {
+                [
                     u.iter().map(|z| z.re).collect(),
                     u.iter().map(|z| z.im).collect(),
-                ] {
-                    basis.add(self, &f, part);
-                }
-            }
+                ]
+            });
+            basis.extend(self, &f, parts.collect());
             results = omegas
                 .par_iter()
                 .map(|&omega| basis.solve(self, &f, force_norm, omega))
