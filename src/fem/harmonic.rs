@@ -10,7 +10,7 @@
 //! (`fem::complex_symmetric`). Fixed DOFs are removed from the system (û = 0 there).
 
 use faer::c64;
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::SparseColMat;
 use nalgebra::Vector3;
 
 use super::assembly::SparsePattern;
@@ -20,6 +20,7 @@ use super::dynamics::{Rayleigh, non_negative};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::model::FemModel;
+use super::reduced_pattern::ReducedLower;
 use super::rigid::{Reduction, RigidBodies};
 use super::state::CorotationalState;
 
@@ -75,49 +76,6 @@ fn merged(mut entries: Vec<(usize, usize, f64)>) -> Vec<(usize, usize, f64)> {
         }
     }
     out
-}
-
-/// The m x m matrix of the (row, column, value) entries `entries` (all below m), duplicates
-/// summed in their order: bucketed by column, then each column sorted by row. A counting sort
-/// instead of faer's `try_new_from_triplets`, which took 0.03 s for the rigid package
-/// check's half a million entries, timed alone (BENCHMARKS.md).
-fn summed_columns(m: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
-    let mut start = vec![0usize; m + 1];
-    for &(_, c, _) in entries {
-        start[c + 1] += 1;
-    }
-    for c in 0..m {
-        start[c + 1] += start[c];
-    }
-    let mut next = start.clone();
-    let mut bucketed = vec![(0usize, 0.0f64); entries.len()];
-    for &(r, c, v) in entries {
-        bucketed[next[c]] = (r, v);
-        next[c] += 1;
-    }
-    let mut col_ptr = Vec::with_capacity(m + 1);
-    let (mut row_idx, mut values) = (Vec::new(), Vec::new());
-    col_ptr.push(0);
-    for c in 0..m {
-        let column = &mut bucketed[start[c]..start[c + 1]];
-        column.sort_by_key(|&(r, _)| r);
-        for &(r, v) in column.iter() {
-            match row_idx.last() {
-                Some(&last) if last == r && values.len() > col_ptr[c] => {
-                    if let Some(sum) = values.last_mut() {
-                        *sum += v;
-                    }
-                }
-                _ => {
-                    row_idx.push(r);
-                    values.push(v);
-                }
-            }
-        }
-        col_ptr.push(row_idx.len());
-    }
-    let symbolic = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
-    SparseColMat::new(symbolic, values)
 }
 
 impl HarmonicSolver {
@@ -178,16 +136,6 @@ impl HarmonicSolver {
             &none_fixed,
             &mut lower,
         )?;
-        // Tᵀ K T from the lower triangle of K: each entry and its mirror
-        let sym = pattern.symbolic();
-        let mut triplets = Vec::with_capacity(2 * lower.len());
-        reduction.lower_products(sym, |k, i, a, j, b, diagonal| {
-            let v = a * lower[k] * b;
-            triplets.push((i, j, v));
-            if !diagonal {
-                triplets.push((j, i, v));
-            }
-        });
         let masses = model.lumped_masses();
         let mut mass = Vec::with_capacity(3 * n);
         for d in 0..3 * n {
@@ -213,9 +161,17 @@ impl HarmonicSolver {
             }
         }
         let (mass, damping) = (merged(mass), merged(damping));
-        // the mass and dashpot entries belong to the pattern even where K has none
-        triplets.extend(mass.iter().chain(&damping).map(|&(i, j, _)| (i, j, 0.0)));
-        let stiffness = summed_columns(reduction.unknowns(), &triplets);
+        // Tᵀ K T on a pattern that holds the mass and dashpot entries too, even where K has none
+        let extra: Vec<(usize, usize)> = mass
+            .iter()
+            .chain(&damping)
+            .map(|&(i, j, _)| (i, j))
+            .collect();
+        let sym = pattern.symbolic();
+        let reduced = ReducedLower::new(&reduction, sym, &extra);
+        let mut reduced_lower = vec![0.0; reduced.len()];
+        reduced.reduce(&reduction, sym, &lower, &mut reduced_lower);
+        let stiffness = reduced.to_full(&reduced_lower);
         let s = stiffness.symbolic();
         let position = |row: usize, col: usize| {
             let rows = &s.row_idx()[s.col_ptr()[col]..s.col_ptr()[col + 1]];
@@ -316,37 +272,5 @@ impl HarmonicSolver {
         (0..self.node_count)
             .map(|v| std::array::from_fn(|a| self.reduction.expand_at(q, 3 * v + a)))
             .collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Duplicates are summed, also across the end of one column and the start of the next,
-    /// rows come out sorted, and an empty column stays empty: the dense matrix of the entries.
-    #[test]
-    fn summed_columns_is_the_sum_of_the_entries() {
-        let entries = [
-            (2, 0, 1.0),
-            (0, 0, 2.0),
-            (2, 0, 0.5),
-            (0, 2, 4.0),
-            (1, 2, 3.0),
-            (0, 2, -1.0),
-            (2, 2, 7.0),
-        ];
-        let a = summed_columns(3, &entries);
-        let mut dense = [[0.0; 3]; 3];
-        for &(r, c, v) in &entries {
-            dense[r][c] += v;
-        }
-        let s = a.symbolic();
-        assert_eq!(s.col_ptr(), &[0, 2, 2, 5]);
-        assert_eq!(s.row_idx(), &[0, 2, 0, 1, 2]);
-        for (k, &row) in s.row_idx().iter().enumerate() {
-            let col = s.col_ptr().partition_point(|&p| p <= k) - 1;
-            assert_eq!(a.val()[k], dense[row][col]);
-        }
     }
 }

@@ -30,6 +30,7 @@ mod model;
 mod operator;
 mod pcg;
 mod pressure;
+mod reduced_pattern;
 mod rigid;
 mod rigid_statics;
 mod rotation;

@@ -8,16 +8,18 @@
 //! tangent is Tᵀ K T at the same arms, without the moment's own change as the body turns (as
 //! the warped tangent leaves out dR/dx: a Newton-like iteration whose equilibrium is exact).
 //! A step moves a body by t ← t + αΔt, R ← exp([αΔθ]×) R. The tangent is assembled from the
-//! elastic model's (the bodies' inner tetrahedra left out) through a plan built once: where
-//! each product of a full lower entry with two rows of T falls in the reduced lower pattern.
+//! elastic model's (the bodies' inner tetrahedra left out) through a plan built once
+//! (`fem::reduced_pattern`): where each product of a full lower entry with two rows of T falls
+//! in the reduced lower pattern.
 
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::sparse::SparseColMatRef;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 use super::assembly::SparsePattern;
 use super::cholesky::SparseCholesky;
 use super::error::FemError;
 use super::fixed::FixedDofs;
+use super::reduced_pattern::ReducedLower;
 use super::rigid::{Reduction, RigidBodies};
 use super::rotation::polar_rotation;
 
@@ -36,23 +38,10 @@ pub(crate) struct RigidUnknowns {
     trial: Vec<(Vector3<f64>, Rotation3<f64>)>,
     /// The DOF of each unknown of no body (the unknowns of the bodies follow them).
     free_dofs: Vec<usize>,
-    /// For each product of the full tangent's lower entries with T's rows, in the order
-    /// `Reduction::lower_products` visits them: its slot in `values` and how many times it counts (0 where
-    /// its mirror is the lower entry, 2 where both are).
-    plan: Vec<(usize, f64)>,
-    pattern: SymbolicSparseColMat<usize>,
+    /// The reduced tangent's lower pattern and the plan of its products.
+    reduced: ReducedLower,
     values: Vec<f64>,
     cholesky: SparseCholesky,
-}
-
-/// How many times the product at reduced (p, q) counts in the lower triangle (module doc).
-fn multiplicity(p: usize, q: usize, diagonal_entry: bool) -> f64 {
-    match (diagonal_entry, p.cmp(&q)) {
-        (true, std::cmp::Ordering::Less) => 0.0,
-        (true, _) => 1.0,
-        (false, std::cmp::Ordering::Equal) => 2.0,
-        (false, _) => 1.0,
-    }
 }
 
 impl RigidUnknowns {
@@ -65,7 +54,6 @@ impl RigidUnknowns {
         bodies: &RigidBodies,
     ) -> Result<Self, FemError> {
         let reduction = Reduction::new(rest, fixed, bodies)?;
-        let m = reduction.unknowns();
         let mut members = vec![Vec::new(); bodies.count()];
         let mut rest_arms = vec![Vector3::zeros(); rest.len()];
         for (v, p) in rest.iter().enumerate() {
@@ -77,32 +65,8 @@ impl RigidUnknowns {
         let free_dofs: Vec<usize> = (0..3 * rest.len())
             .filter(|&d| bodies.body_of(d / 3).is_none() && !reduction.row(d).is_empty())
             .collect();
-        // the lower pattern: every product's lower slot, and the whole diagonal
-        let mut slots: Vec<(usize, usize)> = (0..m).map(|i| (i, i)).collect();
-        reduction.lower_products(full.symbolic(), |_, p, _, q, _, diagonal| {
-            if multiplicity(p, q, diagonal) > 0.0 {
-                slots.push((p.min(q), p.max(q)));
-            }
-        });
-        slots.sort_unstable();
-        slots.dedup();
-        let mut col_ptr = vec![0usize; m + 1];
-        for &(c, _) in &slots {
-            col_ptr[c + 1] += 1;
-        }
-        for c in 0..m {
-            col_ptr[c + 1] += col_ptr[c];
-        }
-        let row_idx: Vec<usize> = slots.iter().map(|&(_, r)| r).collect();
-        let pattern = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
-        let mut plan = Vec::new();
-        reduction.lower_products(full.symbolic(), |_, p, _, q, _, diagonal| {
-            let (c, r) = (p.min(q), p.max(q));
-            let rows = &pattern.row_idx()[pattern.col_ptr()[c]..pattern.col_ptr()[c + 1]];
-            let slot = pattern.col_ptr()[c] + rows.partition_point(|&x| x < r);
-            plan.push((slot, multiplicity(p, q, diagonal)));
-        });
-        let cholesky = SparseCholesky::analyse_lower(pattern.as_ref())?;
+        let reduced = ReducedLower::new(&reduction, full.symbolic(), &[]);
+        let cholesky = SparseCholesky::analyse_lower(reduced.pattern())?;
         let identity = (Vector3::zeros(), Rotation3::identity());
         Ok(RigidUnknowns {
             reduction,
@@ -112,9 +76,8 @@ impl RigidUnknowns {
             trial: vec![identity; bodies.count()],
             bodies: bodies.clone(),
             free_dofs,
-            plan,
-            values: vec![0.0; pattern.row_idx().len()],
-            pattern,
+            values: vec![0.0; reduced.len()],
+            reduced,
             cholesky,
         })
     }
@@ -205,17 +168,10 @@ impl RigidUnknowns {
         full: &SparsePattern,
         values: &[f64],
     ) -> Result<(), FemError> {
-        self.values.fill(0.0);
-        let mut next = 0;
-        let (plan, reduced) = (&self.plan, &mut self.values);
-        let lower = full.symbolic();
-        self.reduction.lower_products(lower, |k, _, a, _, b, _| {
-            let (slot, times) = plan[next];
-            next += 1;
-            reduced[slot] += times * a * values[k] * b;
-        });
+        self.reduced
+            .reduce(&self.reduction, full.symbolic(), values, &mut self.values);
         self.cholesky
-            .factorise(SparseColMatRef::new(self.pattern.as_ref(), &self.values))
+            .factorise(SparseColMatRef::new(self.reduced.pattern(), &self.values))
     }
 
     /// Solves the last factorised tangent in place.
