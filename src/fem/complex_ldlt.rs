@@ -9,9 +9,9 @@
 //!
 //! Why not pivot: the harmonic matrices K(1 + iωβ) + iω(αM + C) − ω²M have complex pivots, which
 //! vanish only where real and imaginary parts both do; damping keeps the imaginary part away
-//! from zero at every frequency a sweep factorises. A pivot that is zero or not finite is an
-//! error (`FemError::NotPositiveDefinite` names it), and the caller falls back to a pivoting
-//! LU. Against the real symmetric form of A (twice the unknowns, Bunch-Kaufman pivoting) this
+//! from zero at every frequency a sweep factorises. A pivot that is zero or not finite means
+//! no such factorisation exists (`ComplexLdlt::factorise` gives `None`), and the caller falls
+//! back to a pivoting LU. Against the real symmetric form of A (twice the unknowns, Bunch-Kaufman pivoting) this
 //! stores half the values and does about a third of the work (docs/fem.md,
 //! "Complex symmetric factorisation").
 
@@ -190,7 +190,7 @@ impl ComplexLdlt {
         self.begin.len() - 1
     }
 
-    /// Columns, rows below the diagonal block, and those rows of supernode `s`.
+    /// The number of columns of supernode `s`, and its rows below the diagonal block.
     fn shape(&self, s: usize) -> (usize, &[usize]) {
         (
             self.begin[s + 1] - self.begin[s],
@@ -198,8 +198,12 @@ impl ComplexLdlt {
         )
     }
 
-    /// Factorises the matrix with `values` (one per entry of the analysed pattern).
-    pub(super) fn factorise(&self, values: &[c64]) -> Result<ComplexLdltFactor<'_>, FemError> {
+    /// Factorises the matrix with `values` (one per entry of the analysed pattern); `None`
+    /// where a pivot is zero or not finite (no LDLᵀ without pivoting).
+    pub(super) fn factorise(
+        &self,
+        values: &[c64],
+    ) -> Result<Option<ComplexLdltFactor<'_>>, FemError> {
         if values.len() != self.slots.len() {
             return Err(FemError::LengthMismatch {
                 what: "complex symmetric values",
@@ -267,29 +271,31 @@ impl ComplexLdlt {
             }
             let ls = MatMut::from_column_major_slice_mut(ls, height, width);
             let (mut top, mut bottom) = ls.split_at_row_mut(width);
-            ldlt_in_place(top.rb_mut(), start)?;
+            if !ldlt_in_place(top.rb_mut()) {
+                return Ok(None);
+            }
             scale_below(top.rb(), bottom.rb_mut());
             for &r in below {
                 local[r] = usize::MAX;
             }
         }
-        Ok(ComplexLdltFactor {
+        Ok(Some(ComplexLdltFactor {
             symbolic: self,
             values: l,
-        })
+        }))
     }
 }
 
 /// Factorises the symmetric matrix in the lower triangle of `a` in place: D on the diagonal,
-/// L's strict lower part under it (the upper triangle is left as it was). `offset` is the
-/// index of its first column in the whole matrix (for the error).
-fn ldlt_in_place(mut a: MatMut<'_, c64>, offset: usize) -> Result<(), FemError> {
+/// L's strict lower part under it (the upper triangle is left as it was); false where a pivot
+/// is zero or not finite.
+fn ldlt_in_place(mut a: MatMut<'_, c64>) -> bool {
     let n = a.nrows();
     if n <= UNBLOCKED {
         for k in 0..n {
             let d = a[(k, k)];
             if !(d.re.is_finite() && d.im.is_finite()) || (d.re == 0.0 && d.im == 0.0) {
-                return Err(FemError::NotPositiveDefinite { pivot: offset + k });
+                return false;
             }
             let inv = c64::new(1.0, 0.0) / d;
             for j in k + 1..n {
@@ -303,11 +309,13 @@ fn ldlt_in_place(mut a: MatMut<'_, c64>, offset: usize) -> Result<(), FemError> 
                 a[(i, k)] *= inv;
             }
         }
-        return Ok(());
+        return true;
     }
     let h = n / 2;
     let (mut a11, _, mut a21, mut a22) = a.rb_mut().split_at_mut(h, h);
-    ldlt_in_place(a11.rb_mut(), offset)?;
+    if !ldlt_in_place(a11.rb_mut()) {
+        return false;
+    }
     let a11 = a11.rb();
     // A21 ← A21 L11⁻ᵀ = L21 D1; the product L21 D1 L21ᵀ taken from it, then L21 = A21 D1⁻¹
     solve_unit_lower_triangular_in_place(a11, a21.rb_mut().transpose_mut(), Par::Seq);
@@ -327,7 +335,7 @@ fn ldlt_in_place(mut a: MatMut<'_, c64>, offset: usize) -> Result<(), FemError> 
         Par::Seq,
     );
     a21.copy_from(&l21);
-    ldlt_in_place(a22, offset + h)
+    ldlt_in_place(a22)
 }
 
 /// Turns the block under a factorised diagonal block, A_below, into L_below = A_below L⁻ᵀ D⁻¹.
@@ -521,7 +529,7 @@ mod tests {
             let ldlt = ComplexLdlt::analyse(pattern.as_ref()).unwrap();
             let widest = ldlt.begin.windows(2).map(|w| w[1] - w[0]).max();
             assert_eq!(widest > Some(UNBLOCKED), clique > UNBLOCKED, "{widest:?}");
-            let factor = ldlt.factorise(&values).unwrap();
+            let factor = ldlt.factorise(&values).unwrap().unwrap();
             let mut rng = Lcg(11);
             let b: Vec<c64> = (0..n).map(|_| c64::new(rng.next(), rng.next())).collect();
             let mut x = b.clone();
@@ -548,10 +556,7 @@ mod tests {
         ];
         let (pattern, values) = full(3, &lower);
         let ldlt = ComplexLdlt::analyse(pattern.as_ref()).unwrap();
-        assert!(matches!(
-            ldlt.factorise(&values),
-            Err(FemError::NotPositiveDefinite { .. })
-        ));
+        assert!(matches!(ldlt.factorise(&values), Ok(None)));
         let b = vec![c64::new(1.0, 2.0), c64::new(-3.0, 0.5), c64::new(2.0, 1.0)];
         let solver = ComplexSymmetric::analyse(pattern.as_ref()).unwrap();
         let x = solver

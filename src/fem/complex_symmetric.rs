@@ -74,16 +74,15 @@ impl ComplexSymmetric {
             });
         }
         match &self.analysis {
-            Analysis::Ldlt(ldlt) => match ldlt.factorise(values) {
-                Ok(factor) => {
+            Analysis::Ldlt(ldlt) => match ldlt.factorise(values)? {
+                Some(factor) => {
                     let mut work = Vec::with_capacity(ldlt.unknowns());
                     body(&mut |rhs: &mut [c64]| factor.solve_in_place(rhs, &mut work))
                 }
-                Err(FemError::NotPositiveDefinite { .. }) => {
+                None => {
                     let lu = symbolic_lu(self.pattern.as_ref())?;
                     self.with_lu(&lu, values, body)
                 }
-                Err(e) => Err(e),
             },
             Analysis::Lu(lu) => self.with_lu(lu, values, body),
         }
