@@ -20,6 +20,7 @@ use faer::{Conj, MatMut, Par, Side};
 use super::assembly::SparsePattern;
 use super::error::FemError;
 use super::variant;
+use super::vector_state::DenseKernels;
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
     FemError::Factorisation {
@@ -123,6 +124,7 @@ impl SparseCholesky {
 
     /// Numeric factorisation of `matrix` (lower triangle, the analysed pattern).
     pub fn factorise(&mut self, matrix: SparseColMatRef<'_, usize, f64>) -> Result<(), FemError> {
+        let _clean = DenseKernels;
         self.factorised = false;
         let result = self.symbolic.factorize_numeric_llt(
             &mut self.l_values,
@@ -159,6 +161,7 @@ impl SparseCholesky {
                 found: rhs.len(),
             });
         }
+        let _clean = DenseKernels;
         let llt = LltRef::new(&self.symbolic, &self.l_values);
         llt.solve_in_place_with_conj(
             Conj::No,

@@ -28,6 +28,7 @@ use faer::{Accum, MatMut, MatRef, Par, Side, c64};
 
 use super::error::FemError;
 use super::variant;
+use super::vector_state::DenseKernels;
 
 /// Diagonal blocks up to this size are factorised column by column; larger ones are split in
 /// two halves whose coupling is one matrix product.
@@ -204,6 +205,7 @@ impl ComplexLdlt {
         &self,
         values: &[c64],
     ) -> Result<Option<ComplexLdltFactor<'_>>, FemError> {
+        let _clean = DenseKernels;
         if values.len() != self.slots.len() {
             return Err(FemError::LengthMismatch {
                 what: "complex symmetric values",
@@ -352,6 +354,7 @@ fn scale_below(top: MatRef<'_, c64>, mut bottom: MatMut<'_, c64>) {
 impl ComplexLdltFactor<'_> {
     /// Solves A x = `rhs` in place; `work` is scratch space.
     pub(super) fn solve_in_place(&self, rhs: &mut [c64], work: &mut Vec<c64>) {
+        let _clean = DenseKernels;
         let sym = self.symbolic;
         let n = sym.unknowns();
         work.clear();

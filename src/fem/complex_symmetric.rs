@@ -17,6 +17,7 @@ use faer::{Conj, MatMut, Par, c64};
 use super::complex_ldlt::ComplexLdlt;
 use super::error::FemError;
 use super::variant;
+use super::vector_state::DenseKernels;
 
 fn faer_error(stage: &str, e: impl std::fmt::Debug) -> FemError {
     FemError::Factorisation {
@@ -96,6 +97,7 @@ impl ComplexSymmetric {
         body: impl FnOnce(&mut dyn FnMut(&mut [c64])) -> Result<R, FemError>,
     ) -> Result<R, FemError> {
         let par = Par::Seq;
+        let clean = DenseKernels;
         let mut mem = MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_lu_scratch::<c64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<c64>(1, par),
@@ -111,7 +113,9 @@ impl ComplexSymmetric {
             )
             .map_err(|e| faer_error("numeric LU", e))?;
         let m = self.unknowns();
+        drop(clean);
         body(&mut |rhs: &mut [c64]| {
+            let _clean = DenseKernels;
             lu.solve_in_place_with_conj(
                 Conj::No,
                 MatMut::from_column_major_slice_mut(rhs, m, 1),

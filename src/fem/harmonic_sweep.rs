@@ -20,6 +20,7 @@ use rayon::prelude::*;
 
 use super::error::FemError;
 use super::harmonic::{ComplexDisplacement, HarmonicSolver};
+use super::vector_state::DenseKernels;
 
 /// How far the reduced model is trusted and how it grows.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -179,7 +180,10 @@ impl Basis {
             stiffness * self.kr[i][j] + mass * self.mr[i][j] + damping * self.cr[i][j]
         });
         let b = Mat::<c64>::from_fn(r, 1, |i, _| c64::new(self.fr[i], 0.0));
-        let q = a.partial_piv_lu().solve(&b);
+        let q = {
+            let _clean = DenseKernels;
+            a.partial_piv_lu().solve(&b)
+        };
         let n = force.len();
         let mut u = vec![c64::new(0.0, 0.0); n];
         let mut au = vec![c64::new(0.0, 0.0); n];

@@ -39,6 +39,7 @@ mod static_unknowns;
 mod statics;
 mod tet;
 mod variant;
+pub(crate) mod vector_state;
 
 pub use assembly::SparsePattern;
 pub use cholesky::SparseCholesky;

@@ -39,6 +39,7 @@ use super::deform::{
     ProbeConfig, ProbeTriangle, kept_offsets, node_displacements, probe_borders, screen,
     triangle_neighbours,
 };
+use crate::fem::vector_state::DenseKernels;
 use crate::image::Sampler;
 use crate::mesh::quality::ElementFloors;
 use crate::mesh::tet::TetMesh;
@@ -314,10 +315,14 @@ impl Smoothing {
     ) -> Option<Vec<Vector3<f64>>> {
         let n = data.len();
         let matrix = Self::matrix(&self.edges, weight, stiffness, smoothness)?;
-        let llt =
-            Llt::try_new_with_symbolic(self.symbolic.clone(), matrix.as_ref(), Side::Lower).ok()?;
         let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
-        llt.solve_in_place(rhs.as_mut());
+        {
+            let _clean = DenseKernels;
+            let llt =
+                Llt::try_new_with_symbolic(self.symbolic.clone(), matrix.as_ref(), Side::Lower)
+                    .ok()?;
+            llt.solve_in_place(rhs.as_mut());
+        }
         Some(
             (0..n)
                 .map(|v| Vector3::new(rhs[(v, 0)], rhs[(v, 1)], rhs[(v, 2)]))
