@@ -6,6 +6,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use crate::image::nifti::is_nifti_path;
 use crate::image::{ImageError, IngestConfig};
 use crate::mesh::TriMesh;
@@ -150,8 +152,9 @@ pub fn load_structures(
         .filter(|p| mesh_extension(p).is_some())
         .collect();
     if !meshes.is_empty() {
+        // each file parsed on its own thread: a segmentation's surfaces are a few MB each
         return meshes
-            .into_iter()
+            .into_par_iter()
             .map(|p| {
                 Ok(Structure {
                     name: stem(p),

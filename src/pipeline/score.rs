@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::Point3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::Error;
@@ -108,24 +109,35 @@ pub fn score<const N: usize>(
             }
         }
     }
+    // the structures side by side (each comparison is parallel too, but its index builds
+    // and sampling are partly serial)
+    let scored: Vec<(&str, Vec<StructureScore>)> = truths
+        .par_iter()
+        .map(|&(name, part, truth)| {
+            let prepared = PreparedReference::new(truth, &options.sampling)?;
+            let scores = node_sets
+                .iter()
+                .map(|nodes| {
+                    let test = match part {
+                        Some(part) => atlas.part_surface(part, nodes),
+                        None => atlas.chain_surface(nodes),
+                    };
+                    let c = compare_prepared(&test, &prepared, &options)?;
+                    Ok(StructureScore {
+                        distances: c.distances,
+                        surface: test,
+                        deviation: c.deviation.quality,
+                        colours: c.deviation.colours,
+                    })
+                })
+                .collect::<Result<_, MeshDevError>>()?;
+            Ok((name, scores))
+        })
+        .collect::<Result<_, MeshDevError>>()?;
     let mut out: [BTreeMap<String, StructureScore>; N] = std::array::from_fn(|_| BTreeMap::new());
-    for (name, part, truth) in truths {
-        let prepared = PreparedReference::new(truth, &options.sampling)?;
-        for (nodes, scores) in node_sets.iter().zip(&mut out) {
-            let test = match part {
-                Some(part) => atlas.part_surface(part, nodes),
-                None => atlas.chain_surface(nodes),
-            };
-            let c = compare_prepared(&test, &prepared, &options)?;
-            scores.insert(
-                name.to_string(),
-                StructureScore {
-                    distances: c.distances,
-                    surface: test,
-                    deviation: c.deviation.quality,
-                    colours: c.deviation.colours,
-                },
-            );
+    for (name, scores) in scored {
+        for (score, map) in scores.into_iter().zip(&mut out) {
+            map.insert(name.to_string(), score);
         }
     }
     Ok(out)
