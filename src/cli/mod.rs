@@ -73,6 +73,19 @@ pub fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
+    // The command runs on rayon's workers rather than beside them. Called from outside its
+    // pool, every parallel loop hands its work over and the calling thread sleeps until it is
+    // done: on two cores, the many short loops of the registration made 46,000 context
+    // switches and took a quarter of the deformable stage (BENCHMARKS.md, "The command on
+    // rayon's workers"). Without a pool (threads refused), the command runs as it is.
+    match rayon::ThreadPoolBuilder::new().build() {
+        Ok(pool) => pool.install(|| execute(&cli)),
+        Err(_) => execute(&cli),
+    }
+}
+
+/// Runs the parsed command and maps its outcome to the exit code.
+fn execute(cli: &Cli) -> ExitCode {
     let json = match &cli.command {
         Command::Inspect(a) => a.json,
         Command::Landmarks(a) => a.json,

@@ -124,7 +124,7 @@ impl SparseCholesky {
 
     /// Numeric factorisation of `matrix` (lower triangle, the analysed pattern).
     pub fn factorise(&mut self, matrix: SparseColMatRef<'_, usize, f64>) -> Result<(), FemError> {
-        let _clean = DenseKernels;
+        let _clean = DenseKernels::parallel();
         self.factorised = false;
         let result = self.symbolic.factorize_numeric_llt(
             &mut self.l_values,
@@ -161,7 +161,7 @@ impl SparseCholesky {
                 found: rhs.len(),
             });
         }
-        let _clean = DenseKernels;
+        let _clean = DenseKernels::parallel();
         let llt = LltRef::new(&self.symbolic, &self.l_values);
         llt.solve_in_place_with_conj(
             Conj::No,

@@ -205,7 +205,7 @@ impl ComplexLdlt {
         &self,
         values: &[c64],
     ) -> Result<Option<ComplexLdltFactor<'_>>, FemError> {
-        let _clean = DenseKernels;
+        let _clean = DenseKernels::sequential();
         if values.len() != self.slots.len() {
             return Err(FemError::LengthMismatch {
                 what: "complex symmetric values",
@@ -354,7 +354,7 @@ fn scale_below(top: MatRef<'_, c64>, mut bottom: MatMut<'_, c64>) {
 impl ComplexLdltFactor<'_> {
     /// Solves A x = `rhs` in place; `work` is scratch space.
     pub(super) fn solve_in_place(&self, rhs: &mut [c64], work: &mut Vec<c64>) {
-        let _clean = DenseKernels;
+        let _clean = DenseKernels::sequential();
         let sym = self.symbolic;
         let n = sym.unknowns();
         work.clear();

@@ -97,7 +97,7 @@ impl ComplexSymmetric {
         body: impl FnOnce(&mut dyn FnMut(&mut [c64])) -> Result<R, FemError>,
     ) -> Result<R, FemError> {
         let par = Par::Seq;
-        let clean = DenseKernels;
+        let clean = DenseKernels::sequential();
         let mut mem = MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_lu_scratch::<c64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<c64>(1, par),
@@ -115,7 +115,7 @@ impl ComplexSymmetric {
         let m = self.unknowns();
         drop(clean);
         body(&mut |rhs: &mut [c64]| {
-            let _clean = DenseKernels;
+            let _clean = DenseKernels::sequential();
             lu.solve_in_place_with_conj(
                 Conj::No,
                 MatMut::from_column_major_slice_mut(rhs, m, 1),

@@ -181,7 +181,7 @@ impl Basis {
         });
         let b = Mat::<c64>::from_fn(r, 1, |i, _| c64::new(self.fr[i], 0.0));
         let q = {
-            let _clean = DenseKernels;
+            let _clean = DenseKernels::parallel();
             a.partial_piv_lu().solve(&b)
         };
         let n = force.len();

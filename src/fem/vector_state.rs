@@ -7,20 +7,34 @@
 //! outside faer is SSE. Measured on `run`: the surface scoring after the deformable stage took
 //! 0.84-0.89 s instead of 0.54-0.56 s (BENCHMARKS.md, "Dirty vector registers").
 //!
-//! [`DenseKernels`] clears them when it is dropped: one is held across each call into
-//! faer's numeric factorisations and solves. The calling thread is cleared; when it is not
-//! one of rayon's workers, the workers (which faer's parallel kernels may have run on) are
-//! cleared too. A worker that called faer clears only itself, so as not to wait for workers
-//! busy elsewhere; a worker that lent a hand to such a call is cleared by its own next call.
+//! A [`DenseKernels`] guard is held across each call into faer's numeric factorisations and
+//! solves and clears the registers when dropped: the calling thread at once, and, after a
+//! call that may have run kernels on rayon's other workers, each of them when it next looks
+//! for work (`rayon::spawn_broadcast`: no thread waits for a worker busy elsewhere).
 
 /// Clears the vector registers' upper halves when dropped (module documentation).
-pub(crate) struct DenseKernels;
+pub(crate) struct DenseKernels {
+    /// Whether faer may have run kernels on other threads (a parallel call).
+    parallel: bool,
+}
+
+impl DenseKernels {
+    /// For a call that faer runs on the calling thread alone (`Par::Seq`).
+    pub(crate) fn sequential() -> Self {
+        DenseKernels { parallel: false }
+    }
+
+    /// For a call with faer's global parallelism, which may use every rayon worker.
+    pub(crate) fn parallel() -> Self {
+        DenseKernels { parallel: true }
+    }
+}
 
 impl Drop for DenseKernels {
     fn drop(&mut self) {
         clear_this_thread();
-        if rayon::current_thread_index().is_none() {
-            rayon::broadcast(|_| clear_this_thread());
+        if self.parallel {
+            rayon::spawn_broadcast(|_| clear_this_thread());
         }
     }
 }
@@ -56,7 +70,10 @@ mod tests {
         );
         // CPUID.(EAX = 0Dh, ECX = 1):EAX bit 2: XGETBV with ECX = 1 is supported
         let leaf = std::arch::x86_64::__cpuid_count(0xd, 1);
-        assert!(leaf.eax & 0b100 != 0, "these tests need XGETBV with ECX = 1");
+        assert!(
+            leaf.eax & 0b100 != 0,
+            "these tests need XGETBV with ECX = 1"
+        );
         // SAFETY: XSAVE and XGETBV with ECX = 1 are supported (both asserted above).
         let in_use = unsafe { std::arch::x86_64::_xgetbv(1) };
         in_use & 0b100_0100
@@ -83,13 +100,13 @@ mod tests {
     fn faer_leaves_the_upper_halves_dirty_and_the_guard_clears_them() {
         assert!(faer_product() > 0.0);
         assert_ne!(dirty_upper_halves(), 0);
-        drop(DenseKernels);
+        drop(DenseKernels::sequential());
         assert_eq!(dirty_upper_halves(), 0);
     }
 
     /// A sparse Cholesky factorisation and solve (supernodal, its updates in faer's kernels on
-    /// rayon's workers) called from outside the pool leaves this thread and every worker clean,
-    /// though each was dirtied beforehand. Run in a process of its own (this test binary again,
+    /// rayon's workers) leave the calling thread and every worker clean, though each was
+    /// dirtied beforehand, whether called from outside rayon's pool or from one of its workers. Run in a process of its own (this test binary again,
     /// this test alone), so that no other test dirties a worker in between.
     #[test]
     fn a_factorisation_leaves_every_thread_clean() {
@@ -136,27 +153,42 @@ mod tests {
         }
         let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
         let mut cholesky = SparseCholesky::analyse_lower(pattern.as_ref()).unwrap();
-        let dirty_everywhere = || {
-            faer_product();
-            rayon::broadcast(|_| {
-                faer_product();
-            });
-        };
-        let dirty_threads = || {
-            let mut d = rayon::broadcast(|_| dirty_upper_halves());
-            d.push(dirty_upper_halves());
-            d.into_iter().filter(|&bits| bits != 0).count()
-        };
-        dirty_everywhere();
-        assert_eq!(dirty_threads(), rayon::current_num_threads() + 1);
-        cholesky
-            .factorise(SparseColMatRef::new(pattern.as_ref(), &values))
-            .unwrap();
-        assert_eq!(dirty_threads(), 0);
-        dirty_everywhere();
         let mut rhs = vec![1.0; n];
-        cholesky.solve_in_place(&mut rhs).unwrap();
-        assert_eq!(dirty_threads(), 0);
+        // every thread dirty, then each call, then the threads still dirty (the calling thread
+        // is one of the pool's inside it)
+        let mut calls_and_count = |inside: bool| {
+            let dirty_everywhere = || {
+                faer_product();
+                rayon::broadcast(|_| {
+                    faer_product();
+                });
+            };
+            let dirty_threads = || {
+                let mut d = rayon::broadcast(|_| dirty_upper_halves());
+                if !inside {
+                    d.push(dirty_upper_halves());
+                }
+                d.into_iter().filter(|&bits| bits != 0).count()
+            };
+            dirty_everywhere();
+            let all = dirty_threads();
+            cholesky
+                .factorise(SparseColMatRef::new(pattern.as_ref(), &values))
+                .unwrap();
+            let after_factorisation = dirty_threads();
+            dirty_everywhere();
+            rhs.fill(1.0);
+            cholesky.solve_in_place(&mut rhs).unwrap();
+            [all, after_factorisation, dirty_threads()]
+        };
+        // from outside rayon's pool (the test's thread), then from one of its workers
+        let threads = rayon::current_num_threads();
+        assert_eq!(calls_and_count(false), [threads + 1, 0, 0]);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        assert_eq!(pool.install(|| calls_and_count(true)), [2, 0, 0]);
         // the solve is a solve: A x = 1 at an interior unknown
         let c = index(7, 7, 7);
         let neighbours = [1, side, side * side]

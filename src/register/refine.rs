@@ -317,7 +317,7 @@ impl Smoothing {
         let matrix = Self::matrix(&self.edges, weight, stiffness, smoothness)?;
         let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
         {
-            let _clean = DenseKernels;
+            let _clean = DenseKernels::parallel();
             let llt =
                 Llt::try_new_with_symbolic(self.symbolic.clone(), matrix.as_ref(), Side::Lower)
                     .ok()?;
