@@ -1,5 +1,6 @@
 //! `cargo run --release --example bench_run [-- REPEATS]`: `otoatlas run` on each sample case,
 //! REPEATS times (default 5), printing the median seconds of every stage and of the whole run.
+//! Like the `otoatlas` command, it runs on rayon's workers (`cli::main`).
 
 use std::path::Path;
 
@@ -12,6 +13,13 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    rayon::ThreadPoolBuilder::new()
+        .build()?
+        .install(|| bench().map_err(|e| e.to_string()))?;
+    Ok(())
+}
+
+fn bench() -> Result<(), Box<dyn std::error::Error>> {
     let repeats: usize = std::env::args().nth(1).map_or(Ok(5), |s| s.parse())?;
     let config = Config::default_config()?;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
