@@ -51,10 +51,9 @@ fn clear_this_thread() {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
 #[cfg(test)]
 mod tests {
-    #![cfg(target_arch = "x86_64")]
-
     use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
     use faer::{Accum, Mat, Par};
 
