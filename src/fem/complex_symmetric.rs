@@ -97,23 +97,24 @@ impl ComplexSymmetric {
         body: impl FnOnce(&mut dyn FnMut(&mut [c64])) -> Result<R, FemError>,
     ) -> Result<R, FemError> {
         let par = Par::Seq;
-        let clean = DenseKernels::sequential();
         let mut mem = MemBuffer::new(StackReq::any_of(&[
             symbolic.factorize_numeric_lu_scratch::<c64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<c64>(1, par),
         ]));
         let mut numeric = NumericLu::<usize, c64>::new();
-        let lu: LuRef<'_, usize, c64> = symbolic
-            .factorize_numeric_lu(
-                &mut numeric,
-                SparseColMatRef::new(self.pattern.as_ref(), values),
-                par,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .map_err(|e| faer_error("numeric LU", e))?;
+        let lu: LuRef<'_, usize, c64> = {
+            let _clean = DenseKernels::sequential();
+            symbolic
+                .factorize_numeric_lu(
+                    &mut numeric,
+                    SparseColMatRef::new(self.pattern.as_ref(), values),
+                    par,
+                    MemStack::new(&mut mem),
+                    Default::default(),
+                )
+                .map_err(|e| faer_error("numeric LU", e))?
+        };
         let m = self.unknowns();
-        drop(clean);
         body(&mut |rhs: &mut [c64]| {
             let _clean = DenseKernels::sequential();
             lu.solve_in_place_with_conj(
