@@ -241,6 +241,51 @@ fn membrane_model(nodes: &[Point3<f64>], tris: &[[u32; 3]], mat: MembraneMateria
 /// only against rigid motion: the mesh, its material, its model and its fixed DOFs.
 const SPHERE_RADIUS: f64 = 4.0;
 
+#[test]
+fn a_tangent_factorised_ahead_is_the_one_the_solve_would_factorise_first() {
+    // `factorise_ahead` at rest, then clones of that solver loaded to +2 kPa and -2 kPa (what
+    // the static curve does for its two branches): each reaches the equilibrium of a fresh
+    // solver bit for bit, in as many iterations and with one factorisation fewer.
+    let (sphere, _, model, fixed) = membrane_sphere();
+    let options = StaticOptions {
+        tolerance_mm: 1e-10,
+        reuse_tangent_below: 0.5,
+        anderson_depth: 4,
+        ..StaticOptions::default()
+    };
+    let fresh = || {
+        StaticSolver::new(&model, fixed.clone())
+            .unwrap()
+            .with_residual_tolerance(1e-9)
+            .unwrap()
+    };
+    let mut ahead = fresh();
+    let mut rest = sphere.vertices.clone();
+    ahead
+        .factorise_ahead(&mut rest, &StaticLoads::default(), true, &options)
+        .unwrap();
+    assert_eq!(rest, sphere.vertices);
+    for pressure in [2e3, -2e3] {
+        let load = PressureLoad {
+            triangles: &sphere.triangles,
+            pressure,
+        };
+        let solve = |mut solver: StaticSolver<'_>| {
+            let mut x = sphere.vertices.clone();
+            let report = solver
+                .solve_with_pressure(&mut x, &StaticLoads::default(), &load, &options)
+                .unwrap();
+            (x, report)
+        };
+        let (x_fresh, fresh_report) = solve(fresh());
+        let (x_ahead, ahead_report) = solve(ahead.clone());
+        assert!(x_fresh != sphere.vertices);
+        assert_eq!(x_ahead, x_fresh, "{pressure} Pa");
+        assert_eq!(ahead_report.iterations, fresh_report.iterations);
+        assert_eq!(ahead_report.factorisations + 1, fresh_report.factorisations);
+    }
+}
+
 fn membrane_sphere() -> (TriMesh, MembraneMaterial, FemModel, FixedDofs) {
     let sphere = icosphere(Point3::origin(), SPHERE_RADIUS, 3);
     let mat = MembraneMaterial {

@@ -364,6 +364,18 @@ impl Sink<'_> {
     /// Adds block `k` (rows of node `hi`, columns of node `lo`, hi > lo) at neighbour `rank`.
     #[inline]
     fn add_off_diagonal(&mut self, hi: usize, lo: usize, rank: usize, k: &Matrix3<f64>) {
+        if self.fixed.node_free(hi) && self.fixed.node_free(lo) {
+            for j in 0..3 {
+                let base = self.col_ptr[3 * lo + j] + (3 - j) + 3 * rank;
+                for (v, kij) in self.values[base..base + 3]
+                    .iter_mut()
+                    .zip(k.column(j).iter())
+                {
+                    *v += kij;
+                }
+            }
+            return;
+        }
         for j in 0..3 {
             if self.fixed.is_fixed(3 * lo + j) {
                 continue;

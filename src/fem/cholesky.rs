@@ -7,6 +7,8 @@
 //! each node, so a node's DOFs stay adjacent in the factor and the ordering works on a graph
 //! nine times smaller than the DOF pattern.
 
+use std::sync::Arc;
+
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::LltError;
 use faer::perm::PermRef;
@@ -60,9 +62,10 @@ fn node_amd(pattern: &SparsePattern) -> Result<(Vec<usize>, Vec<usize>), FemErro
     Ok((expand(&fwd), expand(&inv)))
 }
 
-/// A reusable sparse Cholesky factorisation for one sparsity pattern.
+/// A reusable sparse Cholesky factorisation for one sparsity pattern. A clone shares the
+/// symbolic analysis and has its own numeric factor and scratch.
 pub struct SparseCholesky {
-    symbolic: SymbolicCholesky<usize>,
+    symbolic: Arc<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     scratch: MemBuffer,
     par: Par,
@@ -76,6 +79,26 @@ impl std::fmt::Debug for SparseCholesky {
             .field("factor_nnz", &self.l_values.len())
             .field("factorised", &self.factorised)
             .finish()
+    }
+}
+
+/// The scratch of a numeric factorisation and a one-column solve.
+fn scratch(symbolic: &SymbolicCholesky<usize>, par: Par) -> MemBuffer {
+    MemBuffer::new(StackReq::any_of(&[
+        symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        symbolic.solve_in_place_scratch::<f64>(1, par),
+    ]))
+}
+
+impl Clone for SparseCholesky {
+    fn clone(&self) -> Self {
+        SparseCholesky {
+            symbolic: Arc::clone(&self.symbolic),
+            l_values: self.l_values.clone(),
+            scratch: scratch(&self.symbolic, self.par),
+            par: self.par,
+            factorised: self.factorised,
+        }
     }
 }
 
@@ -104,14 +127,10 @@ impl SparseCholesky {
             factorize_symbolic_cholesky(pattern, Side::Lower, ordering, variant::cholesky_params())
                 .map_err(|e| faer_error("symbolic analysis", e))?;
         let par = faer::get_global_parallelism();
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, par),
-        ]);
         Ok(SparseCholesky {
             l_values: vec![0.0; symbolic.len_val()],
-            scratch: MemBuffer::new(req),
-            symbolic,
+            scratch: scratch(&symbolic, par),
+            symbolic: Arc::new(symbolic),
             par,
             factorised: false,
         })

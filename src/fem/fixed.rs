@@ -48,6 +48,12 @@ impl FixedDofs {
         self.mask[dof]
     }
 
+    /// Whether none of node `v`'s three DOFs is fixed.
+    #[inline]
+    pub fn node_free(&self, v: usize) -> bool {
+        self.mask[3 * v..3 * v + 3] == [false; 3]
+    }
+
     /// Number of DOFs covered (3 per node).
     pub fn len(&self) -> usize {
         self.mask.len()

@@ -9,7 +9,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use super::rigid::Reduction;
 
 /// The lower pattern of Tᵀ A T (the whole diagonal included) and the plan of its products.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct ReducedLower {
     pattern: SymbolicSparseColMat<usize>,
     /// For each product in the order `Reduction::lower_products` visits them: its slot in the

@@ -12,6 +12,8 @@
 //! (`fem::reduced_pattern`): where each product of a full lower entry with two rows of T falls
 //! in the reduced lower pattern.
 
+use std::sync::Arc;
+
 use faer::sparse::SparseColMatRef;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
@@ -24,7 +26,7 @@ use super::rigid::{Reduction, RigidBodies};
 use super::rotation::polar_rotation;
 
 /// The unknowns, the bodies' poses and the reduced tangent's factorisation.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct RigidUnknowns {
     bodies: RigidBodies,
     /// T at the current arms.
@@ -38,8 +40,8 @@ pub(crate) struct RigidUnknowns {
     trial: Vec<(Vector3<f64>, Rotation3<f64>)>,
     /// The DOF of each unknown of no body (the unknowns of the bodies follow them).
     free_dofs: Vec<usize>,
-    /// The reduced tangent's lower pattern and the plan of its products.
-    reduced: ReducedLower,
+    /// The reduced tangent's lower pattern and the plan of its products (shared by clones).
+    reduced: Arc<ReducedLower>,
     values: Vec<f64>,
     cholesky: SparseCholesky,
 }
@@ -77,7 +79,7 @@ impl RigidUnknowns {
             bodies: bodies.clone(),
             free_dofs,
             values: vec![0.0; reduced.len()],
-            reduced,
+            reduced: Arc::new(reduced),
             cholesky,
         })
     }

@@ -12,7 +12,7 @@ use super::fixed::FixedDofs;
 use super::rigid_statics::RigidUnknowns;
 
 /// What the solver's unknowns are.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) enum Unknowns {
     /// Every free DOF (fixed ones stay in the vectors, zeroed).
     Dofs(Box<SparseCholesky>),

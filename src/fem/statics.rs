@@ -41,6 +41,7 @@
 //! every step).
 
 use std::borrow::Cow;
+use std::sync::Arc;
 
 use nalgebra::{Point3, Vector3};
 
@@ -145,14 +146,15 @@ pub struct StaticReport {
 
 /// Static solver for one model and one set of fixed DOFs: the pattern and the symbolic
 /// factorisation are built once here and reused by every solve.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct StaticSolver<'m> {
     /// The model, or with rigid bodies its elastic part (`FemModel::without_rigid_tets`).
     model: Cow<'m, FemModel>,
     /// The unknowns and the tangent's factorisation on them.
     unknowns: Unknowns,
     fixed: FixedDofs,
-    pattern: SparsePattern,
+    /// The tangent's pattern (shared by clones).
+    pattern: Arc<SparsePattern>,
     values: Vec<f64>,
     state: CorotationalState,
     forces: Vec<Vector3<f64>>,
@@ -230,7 +232,7 @@ impl<'m> StaticSolver<'m> {
             unknowns,
             fixed,
             values: pattern.zero_values(),
-            pattern,
+            pattern: Arc::new(pattern),
             forces: vec![Vector3::zeros(); n],
             rhs: vec![0.0; rhs],
             trial: Vec::with_capacity(n),
@@ -309,21 +311,11 @@ impl<'m> StaticSolver<'m> {
         self.check(loads, options)?;
         self.previous_diagonal
             .copy_from_slice(&self.tangent_diagonal);
-        self.tangent_diagonal.fill(options.tangent_shift);
-        for s in loads.springs {
-            self.tangent_diagonal[s.node as usize] += s.stiffness;
-        }
+        self.set_tangent_diagonal(loads, options);
         let carried = options.reuse_tangent_below > 0.0
             && self.factorised_pressure == Some(pressure.is_some())
             && self.previous_diagonal == self.tangent_diagonal;
-        self.unknowns.attach(x);
-        self.state.update(&self.model, x)?;
-        if let Some(&first) = self.state.failed_elements().first() {
-            return Err(FemError::InvertedState {
-                count: self.state.failed_elements().len(),
-                first,
-            });
-        }
+        self.start_at(x)?;
         let mut halvings = 0;
         let mut factorisations = 0;
         let mut previous_residual = f64::INFINITY;
@@ -402,6 +394,45 @@ impl<'m> StaticSolver<'m> {
             relative_residual,
             residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
         })
+    }
+
+    /// Factorises now the tangent that a solve from `x` with `loads` (and a pressure, if
+    /// `pressure`) under `options` would factorise first; the next such solve starts from it,
+    /// as from a tangent carried over from a previous solve (when `options` reuse tangents).
+    /// A caller can factorise beside other work, or once for several clones of the solver:
+    /// `mechanics::udsp` does both for the two branches of its curve, which start at rest.
+    pub fn factorise_ahead(
+        &mut self,
+        x: &mut [Point3<f64>],
+        loads: &StaticLoads<'_>,
+        pressure: bool,
+        options: &StaticOptions,
+    ) -> Result<(), FemError> {
+        self.check(loads, options)?;
+        self.set_tangent_diagonal(loads, options);
+        self.start_at(x)?;
+        self.factorise_tangent(x, pressure)
+    }
+
+    /// The tangent's diagonal terms: the shift, and the springs' stiffness.
+    fn set_tangent_diagonal(&mut self, loads: &StaticLoads<'_>, options: &StaticOptions) {
+        self.tangent_diagonal.fill(options.tangent_shift);
+        for s in loads.springs {
+            self.tangent_diagonal[s.node as usize] += s.stiffness;
+        }
+    }
+
+    /// Puts the bodies on `x` and the state at it; refuses an inverted start.
+    fn start_at(&mut self, x: &mut [Point3<f64>]) -> Result<(), FemError> {
+        self.unknowns.attach(x);
+        self.state.update(&self.model, x)?;
+        if let Some(&first) = self.state.failed_elements().first() {
+            return Err(FemError::InvertedState {
+                count: self.state.failed_elements().len(),
+                first,
+            });
+        }
+        Ok(())
     }
 
     /// The report of a converged solve; `self.rhs` holds the residual at the returned state.

@@ -144,6 +144,98 @@ pub fn static_pressure_curve(
     options: &UdspOptions,
     progress: &dyn Reporter,
 ) -> Result<StaticCurve, MechanicsError> {
+    StaticCurveSolver::new(system, options)?.solve(progress)
+}
+
+/// The static curve's solver before any load: the options checked, the tangent's pattern,
+/// the rigid reduction's plan and the symbolic factorisation built (on a package about a
+/// tenth of the curve's work, all of it serial), so that a caller can build it beside other
+/// work: `validate::mechanics` builds it while the transfer function assembles its own.
+pub struct StaticCurveSolver<'s> {
+    system: &'s MechanicalSystem,
+    options: &'s UdspOptions,
+    solver: StaticSolver<'s>,
+}
+
+impl<'s> StaticCurveSolver<'s> {
+    /// Checks `options` and builds the solver of `system`'s static curve.
+    pub fn new(
+        system: &'s MechanicalSystem,
+        options: &'s UdspOptions,
+    ) -> Result<Self, MechanicsError> {
+        check(options)?;
+        let solver = match options.ossicles {
+            Ossicles::Elastic => StaticSolver::new(&system.model, system.fixed.clone()),
+            Ossicles::Rigid => StaticSolver::with_rigid_bodies(
+                &system.model,
+                system.fixed.clone(),
+                &system.ossicles,
+            ),
+        };
+        let mut solver = solver
+            .and_then(|s| s.with_residual_tolerance(options.residual_tolerance))
+            .map_err(MechanicsError::solve("static solver"))?;
+        // both branches start with the tangent at rest (no stress yet, so the same for both
+        // signs): factorised once, here
+        let mut rest = system.model.rest_positions().to_vec();
+        solver
+            .factorise_ahead(&mut rest, &loads(system), true, &static_options(options))
+            .map_err(MechanicsError::solve("static tangent at rest"))?;
+        Ok(StaticCurveSolver {
+            system,
+            options,
+            solver,
+        })
+    }
+
+    /// Solves the two branches in parallel (the second on a copy of the solver, which
+    /// shares its pattern and symbolic factorisation), each pressure reached reported to
+    /// `progress`.
+    pub fn solve(self, progress: &dyn Reporter) -> Result<StaticCurve, MechanicsError> {
+        let StaticCurveSolver {
+            system,
+            options,
+            solver,
+        } = self;
+        let branches: [Vec<f64>; 2] = [-1.0, 1.0].map(|sign| {
+            let mut ps: Vec<f64> = options
+                .pressures_pa
+                .iter()
+                .copied()
+                .filter(|p| p * sign > 0.0)
+                .collect();
+            ps.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+            ps.dedup();
+            ps
+        });
+        let task = progress.task("UDSP", branches.iter().map(|b| b.len() as u64).sum());
+        let copy = solver.clone();
+        let (neg, pos) = join(
+            || solve_branch(system, copy, &branches[0], options, task.as_ref()),
+            || solve_branch(system, solver, &branches[1], options, task.as_ref()),
+        );
+        let (mut points, neg_failure) = neg?;
+        let (pos_points, pos_failure) = pos?;
+        points.push(UdspPoint {
+            pressure_pa: 0.0,
+            umbo_mm: 0.0,
+            iterations: 0,
+            relative_residual: 0.0,
+        });
+        points.extend(pos_points);
+        points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
+        task.finish(&format!("{} static pressures solved", points.len() - 1));
+        let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
+        Ok(StaticCurve {
+            ossicles: options.ossicles,
+            points,
+            failure: (!failures.is_empty()).then(|| failures.join("; ")),
+        })
+    }
+}
+
+/// Refuses options no curve can be solved with.
+fn check(options: &UdspOptions) -> Result<(), MechanicsError> {
     for (what, v) in [
         ("largest pressure step (Pa)", options.max_step_pa),
         ("smallest pressure step (Pa)", options.min_step_pa),
@@ -173,72 +265,42 @@ pub fn static_pressure_curve(
             expected: "finite",
         });
     }
-    let branches: [Vec<f64>; 2] = [-1.0, 1.0].map(|sign| {
-        let mut ps: Vec<f64> = options
-            .pressures_pa
-            .iter()
-            .copied()
-            .filter(|p| p * sign > 0.0)
-            .collect();
-        ps.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
-        ps.dedup();
-        ps
-    });
-    let task = progress.task("UDSP", branches.iter().map(|b| b.len() as u64).sum());
-    let (neg, pos) = join(
-        || solve_branch(system, &branches[0], options, task.as_ref()),
-        || solve_branch(system, &branches[1], options, task.as_ref()),
-    );
-    let (mut points, neg_failure) = neg?;
-    let (pos_points, pos_failure) = pos?;
-    points.push(UdspPoint {
-        pressure_pa: 0.0,
-        umbo_mm: 0.0,
-        iterations: 0,
-        relative_residual: 0.0,
-    });
-    points.extend(pos_points);
-    points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
-    task.finish(&format!("{} static pressures solved", points.len() - 1));
-    let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
-    Ok(StaticCurve {
-        ossicles: options.ossicles,
-        points,
-        failure: (!failures.is_empty()).then(|| failures.join("; ")),
-    })
+    Ok(())
 }
 
-/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached
-/// (each one reported to `task`), and why the branch stopped short if it did.
-fn solve_branch(
-    system: &MechanicalSystem,
-    pressures: &[f64],
-    options: &UdspOptions,
-    task: &dyn Task,
-) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
-    let rest = system.model.rest_positions();
-    let mut x = rest.to_vec();
-    let solver = match options.ossicles {
-        Ossicles::Elastic => StaticSolver::new(&system.model, system.fixed.clone()),
-        Ossicles::Rigid => {
-            StaticSolver::with_rigid_bodies(&system.model, system.fixed.clone(), &system.ossicles)
-        }
-    };
-    let mut solver = solver
-        .and_then(|s| s.with_residual_tolerance(options.residual_tolerance))
-        .map_err(MechanicsError::solve("static solver"))?;
-    let loads = StaticLoads {
+/// The loads besides the pressure: the system's springs.
+fn loads(system: &MechanicalSystem) -> StaticLoads<'_> {
+    StaticLoads {
         springs: &system.springs,
         nodal_forces: None,
-    };
-    let static_options = StaticOptions {
+    }
+}
+
+/// The solver's controls for each increment.
+fn static_options(options: &UdspOptions) -> StaticOptions {
+    StaticOptions {
         tolerance_mm: options.tolerance_mm,
         max_iterations: options.max_iterations,
         tangent_shift: options.tangent_shift,
         reuse_tangent_below: options.reuse_tangent_below,
         anderson_depth: options.anderson_depth,
         ..StaticOptions::default()
-    };
+    }
+}
+
+/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached
+/// (each one reported to `task`), and why the branch stopped short if it did.
+fn solve_branch(
+    system: &MechanicalSystem,
+    mut solver: StaticSolver<'_>,
+    pressures: &[f64],
+    options: &UdspOptions,
+    task: &dyn Task,
+) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
+    let rest = system.model.rest_positions();
+    let mut x = rest.to_vec();
+    let loads = loads(system);
+    let static_options = static_options(options);
     let u0 = system.umbo.position(rest);
     let mut out = Vec::with_capacity(pressures.len());
     let mut current = 0.0f64;

@@ -3,6 +3,7 @@
 //! package (the atlas with registered node positions, which must keep the atlas's behaviour).
 
 use nalgebra::Point3;
+use rayon::join;
 use serde::Serialize;
 
 use super::boundary::MechanicalSystem;
@@ -10,7 +11,7 @@ use super::condition::Condition;
 use super::error::MechanicsError;
 use super::evidence::{Evidence, evidence};
 use super::tfa::{TfaOptions, TransferFunction, transfer_function};
-use super::udsp::{StaticCurve, UdspOptions, static_pressure_curve};
+use super::udsp::{StaticCurve, StaticCurveSolver, UdspOptions};
 use super::verdict::{Verdict, literature_verdict, relative_verdict};
 use crate::atlas::Atlas;
 use crate::progress::Reporter;
@@ -64,12 +65,24 @@ pub fn mechanics(
     if let Some(h) = options.eardrum_bending_mm {
         system = system.with_eardrum_bending(h)?;
     }
+    // the static curve's solver is built while the transfer function builds its own: both
+    // constructions are serial, and the sweep after them keeps both cores busy
     let t = std::time::Instant::now();
-    let transfer_function = transfer_function(&system, &options.tfa, progress)?;
-    let tfa_seconds = t.elapsed().as_secs_f64();
+    let (transfer_function, static_solver) = join(
+        || {
+            let tf = transfer_function(&system, &options.tfa, progress);
+            (tf, t.elapsed().as_secs_f64())
+        },
+        || {
+            let udsp = options.udsp.as_ref();
+            udsp.map(|u| StaticCurveSolver::new(&system, u)).transpose()
+        },
+    );
+    let (transfer_function, tfa_seconds) = transfer_function;
+    let (transfer_function, static_solver) = (transfer_function?, static_solver?);
     let t = std::time::Instant::now();
-    let udsp = match &options.udsp {
-        Some(udsp) => static_pressure_curve(&system, udsp, progress)?,
+    let udsp = match static_solver {
+        Some(solver) => solver.solve(progress)?,
         None => StaticCurve::default(),
     };
     Ok(Mechanics {
