@@ -147,14 +147,17 @@ pub fn static_pressure_curve(
     StaticCurveSolver::new(system, options)?.solve(progress)
 }
 
-/// The static curve's solver before any load: the options checked, the tangent's pattern,
-/// the rigid reduction's plan and the symbolic factorisation built (on a package about a
-/// tenth of the curve's work, all of it serial), so that a caller can build it beside other
-/// work: `validate::mechanics` builds it while the transfer function assembles its own.
+/// The static curve's solvers before any load: the options checked, the tangent's pattern,
+/// the rigid reduction's plan and the symbolic factorisation built, and the tangent at rest
+/// factorised and copied for the second branch (on a package about a sixth of the curve's
+/// work, all of it serial), so that a caller can build them beside other work:
+/// `validate::mechanics` does it while the transfer function builds its own solver.
 pub struct StaticCurveSolver<'s> {
     system: &'s MechanicalSystem,
     options: &'s UdspOptions,
-    solver: StaticSolver<'s>,
+    /// One solver per branch (p < 0, p > 0): the second a copy of the first, sharing its
+    /// pattern and symbolic analysis.
+    solvers: [StaticSolver<'s>; 2],
 }
 
 impl<'s> StaticCurveSolver<'s> {
@@ -184,18 +187,16 @@ impl<'s> StaticCurveSolver<'s> {
         Ok(StaticCurveSolver {
             system,
             options,
-            solver,
+            solvers: [solver.clone(), solver],
         })
     }
 
-    /// Solves the two branches in parallel (the second on a copy of the solver, which
-    /// shares its pattern and symbolic factorisation), each pressure reached reported to
-    /// `progress`.
+    /// Solves the two branches in parallel, each pressure reached reported to `progress`.
     pub fn solve(self, progress: &dyn Reporter) -> Result<StaticCurve, MechanicsError> {
         let StaticCurveSolver {
             system,
             options,
-            solver,
+            solvers: [negative, positive],
         } = self;
         let branches: [Vec<f64>; 2] = [-1.0, 1.0].map(|sign| {
             let mut ps: Vec<f64> = options
@@ -209,10 +210,9 @@ impl<'s> StaticCurveSolver<'s> {
             ps
         });
         let task = progress.task("UDSP", branches.iter().map(|b| b.len() as u64).sum());
-        let copy = solver.clone();
         let (neg, pos) = join(
-            || solve_branch(system, copy, &branches[0], options, task.as_ref()),
-            || solve_branch(system, solver, &branches[1], options, task.as_ref()),
+            || solve_branch(system, negative, &branches[0], options, task.as_ref()),
+            || solve_branch(system, positive, &branches[1], options, task.as_ref()),
         );
         let (mut points, neg_failure) = neg?;
         let (pos_points, pos_failure) = pos?;

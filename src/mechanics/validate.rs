@@ -49,7 +49,8 @@ impl Default for ValidationOptions {
 pub struct Mechanics {
     pub transfer_function: TransferFunction,
     pub udsp: StaticCurve,
-    /// Wall time of the TFA and of the UDSP (s).
+    /// Wall time of the TFA (with the UDSP's solvers built beside it) and of the UDSP's loads
+    /// after it (s).
     pub tfa_seconds: f64,
     pub udsp_seconds: f64,
 }
