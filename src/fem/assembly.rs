@@ -11,8 +11,9 @@
 //! allocation of a new matrix.)
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
-use nalgebra::{Matrix3, Point3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
+use super::bending::{BendingHinge, HingeVectors, TriangleBending};
 use super::dashpot::{Dashpot, check_dashpots};
 use super::element::CorotElement;
 use super::error::FemError;
@@ -27,14 +28,54 @@ pub struct SparsePattern {
     symbolic: SymbolicSparseColMat<usize>,
     tet_ranks: Vec<u32>,
     membrane_ranks: Vec<u32>,
-    hinge_ranks: Vec<u32>,
-    /// Per hinge coupling, the rank of each (node of the first hinge, node of the second)
-    /// pair, 4 × 4 in order; `SAME_NODE` where the two are one node.
-    coupling_ranks: Vec<u32>,
+    /// Per triangle of the bending (`Bending::triangles`), where its blocks go.
+    bending: Vec<BendingLayout>,
 }
 
-/// A coupling's node pair that is one node (its block is diagonal).
-const SAME_NODE: u32 = u32::MAX;
+/// The nodes a triangle's bending hinges span (at most six: its own three and the node
+/// across each hinge), where each hinge's nodes [p, q, a, b] sit among them, and the rank of
+/// each pair (u, v), v < u in `nodes` order, of the lower blocks.
+#[derive(Debug, Clone)]
+struct BendingLayout {
+    nodes: [u32; 6],
+    len: usize,
+    slots: [[u8; 4]; 3],
+    ranks: [u32; 15],
+}
+
+impl BendingLayout {
+    /// The layout of `share`, its hinges' nodes from `hinges`; no ranks yet.
+    fn new(share: &TriangleBending, hinges: &[BendingHinge]) -> Self {
+        let mut layout = BendingLayout {
+            nodes: [0; 6],
+            len: 0,
+            slots: [[0; 4]; 3],
+            ranks: [0; 15],
+        };
+        for (k, h) in share.hinges.iter().enumerate() {
+            let Some(h) = h else {
+                continue;
+            };
+            for (a, &v) in hinges[*h as usize].nodes.iter().enumerate() {
+                let slot = match layout.nodes[..layout.len].iter().position(|&u| u == v) {
+                    Some(slot) => slot,
+                    None => {
+                        layout.nodes[layout.len] = v;
+                        layout.len += 1;
+                        layout.len - 1
+                    }
+                };
+                layout.slots[k][a] = slot as u8;
+            }
+        }
+        layout
+    }
+
+    /// The node pairs (u, v), v < u in `nodes` order, in the order of `ranks`.
+    fn pairs(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
+        (0..self.len).flat_map(move |u| (0..u).map(move |v| (self.nodes[u], self.nodes[v])))
+    }
+}
 
 /// Local node pairs a < b of an N-node element, in a fixed order.
 fn pairs<const N: usize>() -> impl Iterator<Item = (usize, usize)> {
@@ -57,19 +98,16 @@ impl SparsePattern {
         let tet_pairs = || node_pairs(model.tets.iter().map(|e| &e.nodes));
         let membrane_pairs = || node_pairs(model.membranes.iter().map(|e| &e.nodes));
         let hinges = &model.bending.hinges;
-        let hinge_pairs = || node_pairs(hinges.iter().map(|h| &h.nodes));
-        let coupling_pairs = || {
-            model.bending.couplings.iter().flat_map(|c| {
-                let [e, f] = c.hinges.map(|h| hinges[h as usize].nodes);
-                e.into_iter()
-                    .flat_map(move |p| f.into_iter().map(move |q| (p, q)))
-            })
-        };
+        let mut bending: Vec<BendingLayout> = model
+            .bending
+            .triangles
+            .iter()
+            .map(|t| BendingLayout::new(t, hinges))
+            .collect();
         edges.extend(
             tet_pairs()
                 .chain(membrane_pairs())
-                .chain(hinge_pairs())
-                .chain(coupling_pairs().filter(|(p, q)| p != q))
+                .chain(bending.iter().flat_map(BendingLayout::pairs))
                 .map(|(p, q)| (p.min(q), p.max(q))),
         );
         edges.sort_unstable();
@@ -106,16 +144,15 @@ impl SparsePattern {
         };
         let tet_ranks = ranks(&mut tet_pairs());
         let membrane_ranks = ranks(&mut membrane_pairs());
-        let hinge_ranks = ranks(&mut hinge_pairs());
-        let coupling_ranks = coupling_pairs()
-            .map(|(p, q)| if p == q { SAME_NODE } else { rank(p, q) })
-            .collect();
+        for layout in &mut bending {
+            let pair_ranks: Vec<u32> = layout.pairs().map(|(p, q)| rank(p, q)).collect();
+            layout.ranks[..pair_ranks.len()].copy_from_slice(&pair_ranks);
+        }
         SparsePattern {
             symbolic,
             tet_ranks,
             membrane_ranks,
-            hinge_ranks,
-            coupling_ranks,
+            bending,
         }
     }
 
@@ -175,14 +212,9 @@ impl SparsePattern {
                 3 * model.membranes.len(),
             ),
             (
-                "hinge rank table",
-                self.hinge_ranks.len(),
-                6 * model.bending.hinges.len(),
-            ),
-            (
-                "hinge coupling rank table",
-                self.coupling_ranks.len(),
-                16 * model.bending.couplings.len(),
+                "bending triangle table",
+                self.bending.len(),
+                model.bending.triangles.len(),
             ),
         ] {
             if expected != found {
@@ -209,49 +241,9 @@ impl SparsePattern {
             scale,
             &mut sink,
         );
-        for ((h, grads), ranks) in model
-            .bending
-            .hinges
-            .iter()
-            .zip(&state.hinges.gradients)
-            .zip(self.hinge_ranks.chunks_exact(6))
-        {
-            let k = h.stiffness * scale;
-            for (a, g) in grads.iter().enumerate() {
-                sink.add_diagonal(h.nodes[a] as usize, &(g * g.transpose() * k));
-            }
-            for ((a, b), rank) in pairs::<4>().zip(ranks) {
-                let (p, q) = (h.nodes[a] as usize, h.nodes[b] as usize);
-                let (hi, lo, gh, gl) = if p > q {
-                    (p, q, grads[a], grads[b])
-                } else {
-                    (q, p, grads[b], grads[a])
-                };
-                sink.add_off_diagonal(hi, lo, *rank as usize, &(gh * gl.transpose() * k));
-            }
-        }
-        let hinges = &model.bending.hinges;
         let gradients = &state.hinges.gradients;
-        for (c, ranks) in model
-            .bending
-            .couplings
-            .iter()
-            .zip(self.coupling_ranks.chunks_exact(16))
-        {
-            let k = c.stiffness * scale;
-            let [e, f] = c.hinges.map(|h| h as usize);
-            let pairs = (0..4).flat_map(|a| (0..4).map(move |b| (a, b)));
-            for ((a, b), &rank) in pairs.zip(ranks) {
-                let (p, q) = (hinges[e].nodes[a] as usize, hinges[f].nodes[b] as usize);
-                let (ge, gf) = (gradients[e][a], gradients[f][b]);
-                if rank == SAME_NODE {
-                    sink.add_diagonal(p, &((ge * gf.transpose() + gf * ge.transpose()) * k));
-                } else if p > q {
-                    sink.add_off_diagonal(p, q, rank as usize, &(ge * gf.transpose() * k));
-                } else {
-                    sink.add_off_diagonal(q, p, rank as usize, &(gf * ge.transpose() * k));
-                }
-            }
+        for (share, layout) in model.bending.triangles.iter().zip(&self.bending) {
+            add_bending(share, layout, gradients, scale, &mut sink);
         }
         if let Some(diag) = node_diagonal {
             for (v, &d) in diag.iter().enumerate() {
@@ -401,6 +393,54 @@ impl Sink<'_> {
                 if !self.fixed.is_fixed(3 * v + i) {
                     self.values[base + i - j] += k[(i, j)];
                 }
+            }
+        }
+    }
+}
+
+/// Adds a triangle's bending tangent Gᵀ k_t G (G the gradients of its hinges' angles at the
+/// nodes of `layout`; the Gauss–Newton tangent of `fem::bending`), times `scale`.
+fn add_bending(
+    share: &TriangleBending,
+    layout: &BendingLayout,
+    gradients: &[HingeVectors],
+    scale: f64,
+    sink: &mut Sink<'_>,
+) {
+    let n = layout.len;
+    let mut g = [[Vector3::zeros(); 6]; 3];
+    for (k, h) in share.hinges.iter().enumerate() {
+        if let Some(h) = h {
+            for (a, grad) in gradients[*h as usize].iter().enumerate() {
+                g[k][layout.slots[k][a] as usize] = *grad;
+            }
+        }
+    }
+    // w_k = Σ_l k_kl g_l, so that the block of nodes (u, v) is Σ_k g_k(u) w_k(v)ᵀ
+    let k_t = share.stiffness * scale;
+    let mut w = [[Vector3::zeros(); 6]; 3];
+    for (k, wk) in w.iter_mut().enumerate() {
+        for (v, wkv) in wk.iter_mut().enumerate().take(n) {
+            *wkv = g[0][v] * k_t[(k, 0)] + g[1][v] * k_t[(k, 1)] + g[2][v] * k_t[(k, 2)];
+        }
+    }
+    let block = |u: usize, v: usize| -> Matrix3<f64> {
+        g[0][u] * w[0][v].transpose()
+            + g[1][u] * w[1][v].transpose()
+            + g[2][u] * w[2][v].transpose()
+    };
+    let mut pair = 0;
+    for u in 0..n {
+        let p = layout.nodes[u] as usize;
+        sink.add_diagonal(p, &block(u, u));
+        for v in 0..u {
+            let q = layout.nodes[v] as usize;
+            let rank = layout.ranks[pair] as usize;
+            pair += 1;
+            if p > q {
+                sink.add_off_diagonal(p, q, rank, &block(u, v));
+            } else {
+                sink.add_off_diagonal(q, p, rank, &block(v, u));
             }
         }
     }

@@ -57,11 +57,24 @@ pub(crate) struct HingeCoupling {
     pub stiffness: f64,
 }
 
-/// The membrane's bending: its hinges and their couplings.
+/// One triangle's share of the bending: the hinges of its edges k = (nodes[k], nodes[k + 1])
+/// where it has one, and its 3×3 stiffness k_t between their angles (zero for an edge without
+/// hinge). K is the sum of the triangles' shares; the tangent is assembled from them
+/// (`fem::assembly`), one block per pair of the at most six nodes a triangle's hinges span,
+/// fewer blocks than from the hinges and couplings of K.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct TriangleBending {
+    pub hinges: [Option<u32>; 3],
+    pub stiffness: Matrix3<f64>,
+}
+
+/// The membrane's bending: its hinges and their couplings (the energy and the moments), and
+/// the same stiffness as each triangle's share (the tangent).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct Bending {
     pub hinges: Vec<BendingHinge>,
     pub couplings: Vec<HingeCoupling>,
+    pub triangles: Vec<TriangleBending>,
 }
 
 /// Signed dihedral angle (rad) and its gradient at positions `x`; `None` when a triangle
@@ -154,6 +167,7 @@ pub(crate) fn bending(
         });
     }
     let mut couplings: HashMap<(u32, u32), f64> = HashMap::new();
+    let mut shares = Vec::new();
     for (t, tri) in triangles.iter().enumerate() {
         let (d, nu) = plate(t);
         if d <= 0.0 {
@@ -161,6 +175,13 @@ pub(crate) fn bending(
         }
         let k_t = triangle_stiffness(tri, &across[t], rest, d, nu)
             .unwrap_or_else(|| hinge_share(tri, &across[t], rest, d));
+        let own = across[t].map(|a| a.map(|a| a.hinge));
+        if own.iter().any(Option::is_some) {
+            shares.push(TriangleBending {
+                hinges: own,
+                stiffness: k_t,
+            });
+        }
         for (k, slot) in across[t].iter().enumerate() {
             let Some(Across { hinge: e, .. }) = *slot else {
                 continue;
@@ -181,7 +202,11 @@ pub(crate) fn bending(
         })
         .collect();
     couplings.sort_unstable_by_key(|c| c.hinges);
-    Bending { hinges, couplings }
+    Bending {
+        hinges,
+        couplings,
+        triangles: shares,
+    }
 }
 
 /// A triangle's 3×3 stiffness above this times D |e_max|²/A (about 0.25 on a regular mesh)
@@ -449,6 +474,50 @@ mod tests {
             println!("({a}, {b}, {c}): stored / plate = {}", stored / plate);
             assert!((stored / plate - 1.0).abs() < 1e-4, "{}", stored / plate);
         }
+    }
+
+    /// The triangles' shares add up to the hinges' own stiffnesses and their couplings: the
+    /// tangent assembled from the shares is that of the energy.
+    #[test]
+    fn the_triangles_shares_add_up_to_the_stiffness() {
+        let (rest, cells) = patch();
+        let mat = MembraneMaterial {
+            youngs_modulus: 2.0e7,
+            poisson_ratio: 0.3,
+            thickness: 0.05,
+            bending_thickness: None,
+            density: 1e-3,
+        };
+        let tris: Vec<MembraneElement> = cells
+            .iter()
+            .enumerate()
+            .map(|(e, c)| rest_membrane(e, *c, &rest, &mat).unwrap())
+            .collect();
+        let bending = bending(&tris, |_| (0.7, 0.3), &rest);
+        // each hinge has a share from the middle triangle and from the one across it
+        assert_eq!((bending.triangles.len(), bending.couplings.len()), (4, 3));
+        let n = bending.hinges.len();
+        let mut from_shares = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for share in &bending.triangles {
+            for (k, e) in share.hinges.iter().enumerate() {
+                for (l, f) in share.hinges.iter().enumerate() {
+                    if let (Some(e), Some(f)) = (e, f) {
+                        from_shares[(*e as usize, *f as usize)] += share.stiffness[(k, l)];
+                    }
+                }
+            }
+        }
+        let mut stored = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for (e, h) in bending.hinges.iter().enumerate() {
+            stored[(e, e)] = h.stiffness;
+        }
+        for c in &bending.couplings {
+            let [e, f] = c.hinges.map(|h| h as usize);
+            stored[(e, f)] = c.stiffness;
+            stored[(f, e)] = c.stiffness;
+        }
+        assert!(stored.abs().max() > 0.0);
+        assert!((&from_shares - &stored).abs().max() <= 1e-12 * stored.abs().max());
     }
 
     /// An edge with nothing across it is free: its ghost's angle minimises the triangle's
