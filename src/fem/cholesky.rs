@@ -44,22 +44,32 @@ fn node_amd(pattern: &SparsePattern) -> Result<(Vec<usize>, Vec<usize>), FemErro
         col_ptr.push(row_idx.len());
     }
     let nodes = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-    let (mut fwd, mut inv) = (vec![0usize; n], vec![0usize; n]);
-    let mut mem = MemBuffer::new(amd::order_scratch::<usize>(n, nodes.row_idx().len()));
-    amd::order(
-        &mut fwd,
-        &mut inv,
-        nodes.as_ref(),
-        amd::Control::default(),
-        MemStack::new(&mut mem),
-    )
-    .map_err(|e| faer_error("node ordering", e))?;
+    let (fwd, inv) = amd_ordering(nodes.as_ref())?;
     let expand = |p: &[usize]| -> Vec<usize> {
         p.iter()
             .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
             .collect()
     };
     Ok((expand(&fwd), expand(&inv)))
+}
+
+/// AMD ordering of a symmetric matrix given by its lower pattern: (forward, inverse), the
+/// inverse giving each row's position in the ordered matrix.
+pub(crate) fn amd_ordering(
+    pattern: SymbolicSparseColMatRef<'_, usize>,
+) -> Result<(Vec<usize>, Vec<usize>), FemError> {
+    let n = pattern.nrows();
+    let (mut fwd, mut inv) = (vec![0usize; n], vec![0usize; n]);
+    let mut mem = MemBuffer::new(amd::order_scratch::<usize>(n, pattern.row_idx().len()));
+    amd::order(
+        &mut fwd,
+        &mut inv,
+        pattern,
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .map_err(|e| faer_error("ordering", e))?;
+    Ok((fwd, inv))
 }
 
 /// A reusable sparse Cholesky factorisation for one sparsity pattern. A clone shares the
@@ -111,20 +121,51 @@ impl SparseCholesky {
         Self::with_ordering(pattern.symbolic(), SymmetricOrdering::Custom(perm))
     }
 
-    /// As [`SparseCholesky::analyse`] for any lower-triangle pattern (the diagonal included),
-    /// ordered by AMD on its entries (a reduced tangent, whose unknowns are not 3 per node).
-    pub(crate) fn analyse_lower(
+    /// As [`SparseCholesky::analyse`] for a lower-triangle pattern (the diagonal included)
+    /// already in a fill-reducing order (`amd_ordering`): factorised as it is, so that faer
+    /// neither permutes nor sorts the matrix at each factorisation (a reduced tangent, whose
+    /// unknowns are not 3 per node, permuted once by `ReducedLower::permuted`).
+    pub(crate) fn analyse_in_order(
         pattern: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Self, FemError> {
-        Self::with_ordering(pattern, SymmetricOrdering::Amd)
+        // without a permutation faer's symbolic analysis reads the upper triangle whatever
+        // side it is told (its numeric factorisation takes the lower one as it is)
+        let n = pattern.ncols();
+        let mut col_ptr = vec![0usize; n + 1];
+        for &r in pattern.row_idx() {
+            col_ptr[r + 1] += 1;
+        }
+        for c in 0..n {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let mut next = col_ptr.clone();
+        let mut row_idx = vec![0usize; pattern.row_idx().len()];
+        for c in 0..n {
+            for &r in &pattern.row_idx()[pattern.col_ptr()[c]..pattern.col_ptr()[c + 1]] {
+                row_idx[next[r]] = c;
+                next[r] += 1;
+            }
+        }
+        let upper = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+        Self::with_ordering_on(upper.as_ref(), Side::Upper, SymmetricOrdering::Identity)
     }
 
     fn with_ordering(
         pattern: SymbolicSparseColMatRef<'_, usize>,
         ordering: SymmetricOrdering<'_, usize>,
     ) -> Result<Self, FemError> {
+        Self::with_ordering_on(pattern, Side::Lower, ordering)
+    }
+
+    /// The analysis of the `side` triangle `pattern`; the numeric factorisations take the
+    /// lower triangle.
+    fn with_ordering_on(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        side: Side,
+        ordering: SymmetricOrdering<'_, usize>,
+    ) -> Result<Self, FemError> {
         let symbolic =
-            factorize_symbolic_cholesky(pattern, Side::Lower, ordering, variant::cholesky_params())
+            factorize_symbolic_cholesky(pattern, side, ordering, variant::cholesky_params())
                 .map_err(|e| faer_error("symbolic analysis", e))?;
         let par = faer::get_global_parallelism();
         Ok(SparseCholesky {

@@ -68,6 +68,41 @@ impl ReducedLower {
         ReducedLower { pattern, plan }
     }
 
+    /// The same matrix with its unknowns renumbered, unknown i becoming `position[i]` (a
+    /// fill-reducing order, so that a factorisation takes the pattern as it is): the lower
+    /// pattern of the renumbered matrix, and the plan's slots moved with its entries.
+    pub(crate) fn permuted(&self, position: &[usize]) -> Self {
+        let p = &self.pattern;
+        let m = p.ncols();
+        // (column, row, old slot) of every entry, renumbered and in the lower triangle
+        let mut entries: Vec<(usize, usize, usize)> = Vec::with_capacity(p.row_idx().len());
+        for c in 0..m {
+            for e in p.col_ptr()[c]..p.col_ptr()[c + 1] {
+                let (a, b) = (position[p.row_idx()[e]], position[c]);
+                entries.push((a.min(b), a.max(b), e));
+            }
+        }
+        entries.sort_unstable();
+        let mut col_ptr = vec![0usize; m + 1];
+        let mut moved = vec![0usize; entries.len()];
+        for (new, &(c, _, old)) in entries.iter().enumerate() {
+            col_ptr[c + 1] += 1;
+            moved[old] = new;
+        }
+        for c in 0..m {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let row_idx = entries.iter().map(|&(_, r, _)| r).collect();
+        ReducedLower {
+            pattern: SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx),
+            plan: self
+                .plan
+                .iter()
+                .map(|&(slot, times)| (moved[slot], times))
+                .collect(),
+        }
+    }
+
     /// The lower pattern.
     pub(crate) fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
         self.pattern.as_ref()
@@ -210,19 +245,42 @@ mod tests {
         let reduced = ReducedLower::new(&reduction, full.as_ref(), &[(0, m - 1)]);
         let mut lower = vec![f64::NAN; reduced.len()];
         reduced.reduce(&reduction, full.as_ref(), &values, &mut lower);
-        let matrix = reduced.to_full(&lower);
-        let s = matrix.symbolic();
-        let mut got = DMatrix::<f64>::zeros(m, m);
-        for c in 0..m {
-            let rows = &s.row_idx()[s.col_ptr()[c]..s.col_ptr()[c + 1]];
-            assert!(rows.windows(2).all(|w| w[0] < w[1]), "column {c}: {rows:?}");
-            for (k, &r) in rows.iter().enumerate() {
-                got[(r, c)] = matrix.val()[s.col_ptr()[c] + k];
+        let dense = |reduced: &ReducedLower, lower: &[f64]| {
+            let matrix = reduced.to_full(lower);
+            let s = matrix.symbolic();
+            let mut got = DMatrix::<f64>::zeros(m, m);
+            for c in 0..m {
+                let rows = &s.row_idx()[s.col_ptr()[c]..s.col_ptr()[c + 1]];
+                assert!(rows.windows(2).all(|w| w[0] < w[1]), "column {c}: {rows:?}");
+                for (k, &r) in rows.iter().enumerate() {
+                    got[(r, c)] = matrix.val()[s.col_ptr()[c] + k];
+                }
             }
-        }
+            got
+        };
+        let got = dense(&reduced, &lower);
         assert!((&got - &expected).abs().max() < 1e-12, "{got}\n{expected}");
         // the extra entry is held, as a zero
+        let s = reduced.pattern();
         assert!(s.row_idx()[s.col_ptr()[0]..s.col_ptr()[1]].contains(&(m - 1)));
         assert_eq!(got[(m - 1, 0)], 0.0);
+        // renumbered (unknown i at m - 1 - i), the same matrix, its lower pattern sorted
+        let position: Vec<usize> = (0..m).rev().collect();
+        let permuted = reduced.permuted(&position);
+        let mut permuted_lower = vec![f64::NAN; permuted.len()];
+        permuted.reduce(&reduction, full.as_ref(), &values, &mut permuted_lower);
+        let p = permuted.pattern();
+        for c in 0..m {
+            let rows = &p.row_idx()[p.col_ptr()[c]..p.col_ptr()[c + 1]];
+            assert!(rows.iter().all(|&r| r >= c) && rows.windows(2).all(|w| w[0] < w[1]));
+        }
+        let renumbered = dense(&permuted, &permuted_lower);
+        for (r, c) in (0..m).flat_map(|r| (0..m).map(move |c| (r, c))) {
+            assert_eq!(
+                renumbered[(position[r], position[c])],
+                got[(r, c)],
+                "({r}, {c})"
+            );
+        }
     }
 }

@@ -18,7 +18,7 @@ use faer::sparse::SparseColMatRef;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 use super::assembly::SparsePattern;
-use super::cholesky::SparseCholesky;
+use super::cholesky::{SparseCholesky, amd_ordering};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::reduced_pattern::ReducedLower;
@@ -43,6 +43,9 @@ pub(crate) struct RigidUnknowns {
     /// The reduced tangent's lower pattern and the plan of its products (shared by clones).
     reduced: Arc<ReducedLower>,
     values: Vec<f64>,
+    /// Where each unknown sits in the reduced tangent's order, and a vector in that order.
+    position: Vec<usize>,
+    ordered: Vec<f64>,
     cholesky: SparseCholesky,
 }
 
@@ -67,8 +70,12 @@ impl RigidUnknowns {
         let free_dofs: Vec<usize> = (0..3 * rest.len())
             .filter(|&d| bodies.body_of(d / 3).is_none() && !reduction.row(d).is_empty())
             .collect();
-        let reduced = ReducedLower::new(&reduction, full.symbolic(), &[]);
-        let cholesky = SparseCholesky::analyse_lower(reduced.pattern())?;
+        // the reduced tangent in its fill-reducing order once, so that no factorisation
+        // permutes it again
+        let natural = ReducedLower::new(&reduction, full.symbolic(), &[]);
+        let (_, position) = amd_ordering(natural.pattern())?;
+        let reduced = natural.permuted(&position);
+        let cholesky = SparseCholesky::analyse_in_order(reduced.pattern())?;
         let identity = (Vector3::zeros(), Rotation3::identity());
         Ok(RigidUnknowns {
             reduction,
@@ -80,6 +87,8 @@ impl RigidUnknowns {
             free_dofs,
             values: vec![0.0; reduced.len()],
             reduced: Arc::new(reduced),
+            ordered: vec![0.0; position.len()],
+            position,
             cholesky,
         })
     }
@@ -178,7 +187,21 @@ impl RigidUnknowns {
 
     /// Solves the last factorised tangent in place.
     pub(crate) fn solve_in_place(&mut self, rhs: &mut [f64]) -> Result<(), FemError> {
-        self.cholesky.solve_in_place(rhs)
+        if rhs.len() != self.position.len() {
+            return Err(FemError::LengthMismatch {
+                what: "right-hand side",
+                expected: self.position.len(),
+                found: rhs.len(),
+            });
+        }
+        for (&i, r) in self.position.iter().zip(rhs.iter()) {
+            self.ordered[i] = *r;
+        }
+        self.cholesky.solve_in_place(&mut self.ordered)?;
+        for (&i, r) in self.position.iter().zip(rhs.iter_mut()) {
+            *r = self.ordered[i];
+        }
+        Ok(())
     }
 
     /// The largest out-of-balance force (µN) of the total nodal forces `f`: at a free node of

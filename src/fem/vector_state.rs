@@ -153,7 +153,7 @@ mod tests {
             }
         }
         let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
-        let mut cholesky = SparseCholesky::analyse_lower(pattern.as_ref()).unwrap();
+        let mut cholesky = SparseCholesky::analyse_in_order(pattern.as_ref()).unwrap();
         let mut rhs = vec![1.0; n];
         // every thread dirty, then each call, then the threads still dirty (the calling thread
         // is one of the pool's inside it)
