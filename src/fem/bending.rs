@@ -422,10 +422,15 @@ mod tests {
         (rest, vec![[0, 1, 2], [1, 0, 3], [2, 1, 4], [0, 2, 5]])
     }
 
-    fn patch_bending(rest: &[Point3<f64>], cells: &[[u32; 3]], d: f64, nu: f64) -> Bending {
+    /// The bending of `cells` with plate(t) = (D, ν) of triangle t.
+    fn bending_of(
+        rest: &[Point3<f64>],
+        cells: &[[u32; 3]],
+        plate: impl Fn(usize) -> (f64, f64),
+    ) -> Bending {
         let mat = MembraneMaterial {
             youngs_modulus: 2.0e7,
-            poisson_ratio: nu,
+            poisson_ratio: plate(0).1,
             thickness: 0.05,
             bending_thickness: None,
             density: 1e-3,
@@ -435,7 +440,12 @@ mod tests {
             .enumerate()
             .map(|(e, c)| rest_membrane(e, *c, rest, &mat).unwrap())
             .collect();
-        bending(&tris, |t| (if t == 0 { d } else { 0.0 }, nu), rest)
+        bending(&tris, plate, rest)
+    }
+
+    /// The bending of the first triangle alone.
+    fn patch_bending(rest: &[Point3<f64>], cells: &[[u32; 3]], d: f64, nu: f64) -> Bending {
+        bending_of(rest, cells, |t| (if t == 0 { d } else { 0.0 }, nu))
     }
 
     /// Lifted by a small quadratic height w = ε(½ a x² + b x y + ½ c y²), the bending
@@ -481,19 +491,7 @@ mod tests {
     #[test]
     fn the_triangles_shares_add_up_to_the_stiffness() {
         let (rest, cells) = patch();
-        let mat = MembraneMaterial {
-            youngs_modulus: 2.0e7,
-            poisson_ratio: 0.3,
-            thickness: 0.05,
-            bending_thickness: None,
-            density: 1e-3,
-        };
-        let tris: Vec<MembraneElement> = cells
-            .iter()
-            .enumerate()
-            .map(|(e, c)| rest_membrane(e, *c, &rest, &mat).unwrap())
-            .collect();
-        let bending = bending(&tris, |_| (0.7, 0.3), &rest);
+        let bending = bending_of(&rest, &cells, |_| (0.7, 0.3));
         // each hinge has a share from the middle triangle and from the one across it
         assert_eq!((bending.triangles.len(), bending.couplings.len()), (4, 3));
         let n = bending.hinges.len();
