@@ -130,23 +130,10 @@ impl SparseCholesky {
     ) -> Result<Self, FemError> {
         // without a permutation faer's symbolic analysis reads the upper triangle whatever
         // side it is told (its numeric factorisation takes the lower one as it is)
-        let n = pattern.ncols();
-        let mut col_ptr = vec![0usize; n + 1];
-        for &r in pattern.row_idx() {
-            col_ptr[r + 1] += 1;
-        }
-        for c in 0..n {
-            col_ptr[c + 1] += col_ptr[c];
-        }
-        let mut next = col_ptr.clone();
-        let mut row_idx = vec![0usize; pattern.row_idx().len()];
-        for c in 0..n {
-            for &r in &pattern.row_idx()[pattern.col_ptr()[c]..pattern.col_ptr()[c + 1]] {
-                row_idx[next[r]] = c;
-                next[r] += 1;
-            }
-        }
-        let upper = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+        let upper = pattern
+            .transpose()
+            .to_col_major()
+            .map_err(|e| faer_error("upper triangle", e))?;
         Self::with_ordering_on(upper.as_ref(), Side::Upper, SymmetricOrdering::Identity)
     }
 

@@ -69,7 +69,7 @@ pub fn mechanics(
     // the static curve's solver is built while the transfer function builds its own: both
     // constructions are serial, and the sweep after them keeps both cores busy
     let t = std::time::Instant::now();
-    let (transfer_function, static_solver) = join(
+    let ((transfer_function, tfa_seconds), static_solver) = join(
         || {
             let tf = transfer_function(&system, &options.tfa, progress);
             (tf, t.elapsed().as_secs_f64())
@@ -79,7 +79,6 @@ pub fn mechanics(
             udsp.map(|u| StaticCurveSolver::new(&system, u)).transpose()
         },
     );
-    let (transfer_function, tfa_seconds) = transfer_function;
     let (transfer_function, static_solver) = (transfer_function?, static_solver?);
     let t = std::time::Instant::now();
     let udsp = match static_solver {
