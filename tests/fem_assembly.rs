@@ -2,13 +2,15 @@
 //! equals −∂f/∂x by central finite differences at a rigidly rotated state (where the warped
 //! tangent is exact), fixed DOFs are projected, and the Cholesky solve of the assembled
 //! system satisfies A x = b when A is rebuilt densely from the stored lower triangle; the
-//! matrix-free step operator equals the assembled step matrix at a deformed state.
+//! matrix-free step operator equals the assembled step matrix at a deformed state; a
+//! single-precision factor solves to single precision, and a matrix that is positive definite
+//! only in double precision is factorised in double.
 
 use crate::common::BoxMesh;
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Unit, Vector3};
 use otoatlas::fem::{
-    CorotationalState, Dashpot, Elements, FemModel, FixedDofs, MembraneMaterial, SparseCholesky,
-    SparsePattern, StepOperator, TetMaterial,
+    CorotationalState, Dashpot, Elements, FactorPrecision, FemModel, FixedDofs, MembraneMaterial,
+    SparseCholesky, SparsePattern, StepOperator, TetMaterial,
 };
 
 fn box_with_membrane_lid() -> (BoxMesh, FemModel) {
@@ -171,6 +173,85 @@ fn fixed_dofs_are_projected_and_cholesky_solves() {
         println!("round {round}: residual {:e}", res.norm());
         assert!(res.norm() <= 1e-10 * DVector::from_vec(b.clone()).norm());
     }
+}
+
+/// A single-precision factorisation of the box's tangent solves it with a normwise backward
+/// error ‖b − A x̂‖ / (‖A‖ ‖x̂‖ + ‖b‖) of single precision's order, n ε₃₂ (and above double's,
+/// so the factor really is single; Higham, Accuracy and Stability of Numerical Algorithms,
+/// §7.1 and §10.1), and one of a matrix
+/// whose rounding to single precision is singular (a 2 × 2 block [[1, 1 − ε], [1 − ε, 1]],
+/// ε = 1e-9, in an identity) falls back to double and meets the analytic solution.
+#[test]
+fn a_single_precision_factor_solves_to_its_precision_and_falls_back_when_singular() {
+    let (mesh, model) = box_with_membrane_lid();
+    let x = rigidly_rotated(&mesh.nodes);
+    let mut state = CorotationalState::new(&model);
+    state.update(&model, &x).unwrap();
+    let pattern = SparsePattern::new(&model);
+    let n = 3 * x.len();
+    let free = FixedDofs::from_nodes(x.len(), &[]).unwrap();
+    let diag: Vec<f64> = (0..x.len()).map(|v| 10.0 + v as f64).collect();
+    let mut values = pattern.zero_values();
+    pattern
+        .assemble(&model, &state, 0.5, Some(&diag), &free, &mut values)
+        .unwrap();
+    let a = dense(&pattern, &values);
+    let b = DVector::from_fn(n, |i, _| ((i * 7919) % 13) as f64 - 6.0);
+    let mut chol = SparseCholesky::analyse(&pattern).unwrap();
+    let a_norm = a.clone().svd(false, false).singular_values.max();
+    let mut backward_error = |precision| {
+        chol.factorise_in(pattern.matrix(&values), precision)
+            .unwrap();
+        assert_eq!(chol.precision(), Some(precision));
+        let mut sol = b.as_slice().to_vec();
+        chol.solve_in_place(&mut sol).unwrap();
+        let sol = DVector::from_vec(sol);
+        (&a * &sol - &b).norm() / (a_norm * sol.norm() + b.norm())
+    };
+    let (single, double) = (
+        backward_error(FactorPrecision::Single),
+        backward_error(FactorPrecision::Double),
+    );
+    let n_eps = |eps: f64| n as f64 * eps;
+    println!(
+        "backward error: single {single:e} (n ε₃₂ {:e}), double {double:e} (n ε₆₄ {:e})",
+        n_eps(f32::EPSILON.into()),
+        n_eps(f64::EPSILON)
+    );
+    assert!(single <= n_eps(f32::EPSILON.into()), "single {single:e}");
+    assert!(single > 1e3 * n_eps(f64::EPSILON), "single {single:e}");
+    assert!(double <= n_eps(f64::EPSILON), "double {double:e}");
+
+    // the identity with one near-singular 2 × 2 block on node 0's x and y
+    let eps = 1e-9;
+    let symbolic = pattern.symbolic();
+    let mut near_singular = pattern.zero_values();
+    for c in 0..n {
+        let range = symbolic.col_ptr()[c]..symbolic.col_ptr()[c + 1];
+        for (v, &r) in near_singular[range.clone()]
+            .iter_mut()
+            .zip(&symbolic.row_idx()[range])
+        {
+            *v = match (r, c) {
+                (r, c) if r == c => 1.0,
+                (1, 0) => 1.0 - eps,
+                _ => 0.0,
+            };
+        }
+    }
+    chol.factorise_in(pattern.matrix(&near_singular), FactorPrecision::Single)
+        .unwrap();
+    assert_eq!(chol.precision(), Some(FactorPrecision::Double));
+    let mut sol = vec![0.0; n];
+    sol[0] = 1.0;
+    chol.solve_in_place(&mut sol).unwrap();
+    // [[1, 1 − ε], [1 − ε, 1]]⁻¹ e₀ = (1, −(1 − ε)) / (1 − (1 − ε)²)
+    let det = 1.0 - (1.0 - eps) * (1.0 - eps);
+    let want = [1.0 / det, -(1.0 - eps) / det];
+    for (got, want) in sol.iter().zip(want) {
+        assert!((got - want).abs() <= 1e-5 * want.abs(), "{got} vs {want}");
+    }
+    assert!(sol[2..].iter().all(|v| *v == 0.0));
 }
 
 /// The matrix-free product of `StepOperator` equals the assembled matrix (warped tangent,

@@ -42,7 +42,7 @@ mod variant;
 pub(crate) mod vector_state;
 
 pub use assembly::SparsePattern;
-pub use cholesky::SparseCholesky;
+pub use cholesky::{FactorPrecision, SparseCholesky};
 pub use dashpot::Dashpot;
 pub use dynamics::{ImplicitEuler, Rayleigh, StepReport};
 pub use error::{ElementId, FemError};

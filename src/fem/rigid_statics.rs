@@ -18,7 +18,7 @@ use faer::sparse::SparseColMatRef;
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 use super::assembly::SparsePattern;
-use super::cholesky::{SparseCholesky, amd_ordering};
+use super::cholesky::{FactorPrecision, SparseCholesky, amd_ordering};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::reduced_pattern::ReducedLower;
@@ -173,16 +173,19 @@ impl RigidUnknowns {
             .set_arms(&self.bodies, |v, b| poses[b].1 * arms[v]);
     }
 
-    /// Factorises Tᵀ A T of the full lower tangent `values` on `full`.
+    /// Factorises in `precision` Tᵀ A T of the full lower tangent `values` on `full`.
     pub(crate) fn factorise(
         &mut self,
         full: &SparsePattern,
         values: &[f64],
+        precision: FactorPrecision,
     ) -> Result<(), FemError> {
         self.reduced
             .reduce(&self.reduction, full.symbolic(), values, &mut self.values);
-        self.cholesky
-            .factorise(SparseColMatRef::new(self.reduced.pattern(), &self.values))
+        self.cholesky.factorise_in(
+            SparseColMatRef::new(self.reduced.pattern(), &self.values),
+            precision,
+        )
     }
 
     /// Solves the last factorised tangent in place.

@@ -6,7 +6,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::assembly::SparsePattern;
-use super::cholesky::SparseCholesky;
+use super::cholesky::{FactorPrecision, SparseCholesky};
 use super::error::FemError;
 use super::fixed::FixedDofs;
 use super::rigid_statics::RigidUnknowns;
@@ -50,15 +50,16 @@ impl Unknowns {
         }
     }
 
-    /// Factorises the tangent whose full lower `values` lie on `pattern`.
+    /// Factorises in `precision` the tangent whose full lower `values` lie on `pattern`.
     pub(super) fn factorise(
         &mut self,
         pattern: &SparsePattern,
         values: &[f64],
+        precision: FactorPrecision,
     ) -> Result<(), FemError> {
         match self {
-            Unknowns::Rigid(rigid) => rigid.factorise(pattern, values),
-            Unknowns::Dofs(cholesky) => cholesky.factorise(pattern.matrix(values)),
+            Unknowns::Rigid(rigid) => rigid.factorise(pattern, values, precision),
+            Unknowns::Dofs(cholesky) => cholesky.factorise_in(pattern.matrix(values), precision),
         }
     }
 

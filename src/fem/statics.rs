@@ -47,7 +47,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::anderson::Anderson;
 use super::assembly::SparsePattern;
-use super::cholesky::SparseCholesky;
+use super::cholesky::{FactorPrecision, SparseCholesky};
 use super::error::{ElementId, FemError};
 use super::fixed::FixedDofs;
 use super::model::FemModel;
@@ -109,6 +109,10 @@ pub struct StaticOptions {
     /// iterations mixed into each step taken with a reused tangent; the history is cleared
     /// at each factorisation. 0 (the default) takes the plain steps.
     pub anderson_depth: usize,
+    /// The precision the tangent is factorised in (`FactorPrecision`; double by default).
+    /// The residual, the steps and the convergence tests stay double, so a single-precision
+    /// tangent changes the path to an equilibrium, not the equilibrium.
+    pub tangent_precision: FactorPrecision,
 }
 
 impl Default for StaticOptions {
@@ -122,6 +126,7 @@ impl Default for StaticOptions {
             balanced_below: 0.0,
             stalled_below: 0.0,
             anderson_depth: 0,
+            tangent_precision: FactorPrecision::Double,
         }
     }
 }
@@ -356,7 +361,7 @@ impl<'m> StaticSolver<'m> {
                 && residual <= options.reuse_tangent_below * previous_residual;
             previous_residual = residual;
             if !reuse {
-                self.factorise_tangent(x, pressure.is_some())?;
+                self.factorise_tangent(x, pressure.is_some(), options.tangent_precision)?;
                 factorisations += 1;
                 anderson.clear();
             }
@@ -411,7 +416,7 @@ impl<'m> StaticSolver<'m> {
         self.check(loads, options)?;
         self.set_tangent_diagonal(loads, options);
         self.start_at(x)?;
-        self.factorise_tangent(x, pressure)
+        self.factorise_tangent(x, pressure, options.tangent_precision)
     }
 
     /// The tangent's diagonal terms: the shift, and the springs' stiffness.
@@ -456,8 +461,13 @@ impl<'m> StaticSolver<'m> {
     }
 
     /// Assembles the tangent at `x` (state already updated to `x`), with the membranes'
-    /// stress stiffness under a pressure load, and factorises it.
-    fn factorise_tangent(&mut self, x: &[Point3<f64>], pressure: bool) -> Result<(), FemError> {
+    /// stress stiffness under a pressure load, and factorises it in `precision`.
+    fn factorise_tangent(
+        &mut self,
+        x: &[Point3<f64>],
+        pressure: bool,
+        precision: FactorPrecision,
+    ) -> Result<(), FemError> {
         self.pattern.assemble(
             &self.model,
             &self.state,
@@ -477,7 +487,8 @@ impl<'m> StaticSolver<'m> {
             )?;
         }
         self.factorised_pressure = None;
-        self.unknowns.factorise(&self.pattern, &self.values)?;
+        self.unknowns
+            .factorise(&self.pattern, &self.values, precision)?;
         self.factorised_pressure = Some(pressure);
         Ok(())
     }

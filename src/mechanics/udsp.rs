@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use super::boundary::{MechanicalSystem, Ossicles};
 use super::error::MechanicsError;
-use crate::fem::{PressureLoad, StaticLoads, StaticOptions, StaticSolver};
+use crate::fem::{FactorPrecision, PressureLoad, StaticLoads, StaticOptions, StaticSolver};
 use crate::progress::{Reporter, Task};
 
 /// The pressures of the gate (Pa): ±1, ±2, ±4 kPa.
@@ -70,6 +70,10 @@ pub struct UdspOptions {
     pub anderson_depth: usize,
     /// The ossicles' model (`Ossicles::Rigid`: `StaticSolver::with_rigid_bodies`).
     pub ossicles: Ossicles,
+    /// The precision the tangent is factorised in (`StaticOptions::tangent_precision`). An
+    /// increment that fails with a single-precision tangent is tried again in double
+    /// precision, which the rest of its branch keeps, before it is halved.
+    pub tangent_precision: FactorPrecision,
 }
 
 impl Default for UdspOptions {
@@ -86,6 +90,7 @@ impl Default for UdspOptions {
             reuse_tangent_below: REUSE_TANGENT_BELOW,
             anderson_depth: ANDERSON_DEPTH,
             ossicles: Ossicles::Elastic,
+            tangent_precision: FactorPrecision::Double,
         }
     }
 }
@@ -284,6 +289,7 @@ fn static_options(options: &UdspOptions) -> StaticOptions {
         tangent_shift: options.tangent_shift,
         reuse_tangent_below: options.reuse_tangent_below,
         anderson_depth: options.anderson_depth,
+        tangent_precision: options.tangent_precision,
         ..StaticOptions::default()
     }
 }
@@ -300,7 +306,7 @@ fn solve_branch(
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
     let loads = loads(system);
-    let static_options = static_options(options);
+    let mut static_options = static_options(options);
     let u0 = system.umbo.position(rest);
     let mut out = Vec::with_capacity(pressures.len());
     let mut current = 0.0f64;
@@ -327,6 +333,10 @@ fn solve_branch(
                     relative_residual = report.relative_residual;
                     current = p;
                     step = (2.0 * step).min(options.max_step_pa);
+                }
+                Err(_) if static_options.tangent_precision == FactorPrecision::Single => {
+                    x.copy_from_slice(&before);
+                    static_options.tangent_precision = FactorPrecision::Double;
                 }
                 Err(_) if step / 2.0 >= options.min_step_pa => {
                     x.copy_from_slice(&before);

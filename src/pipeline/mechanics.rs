@@ -16,6 +16,7 @@ use crate::Error;
 use crate::atlas::Atlas;
 use crate::config::ValidateConfig;
 use crate::export::atlas_sha256;
+use crate::fem::FactorPrecision;
 use crate::progress::{Reporter, Silent};
 use serde::{Deserialize, Serialize};
 
@@ -86,6 +87,7 @@ fn gate_udsp() -> UdspOptions {
         tolerance_mm: 1e-3,
         residual_tolerance: 1e-2,
         ossicles: Ossicles::Rigid,
+        tangent_precision: FactorPrecision::Single,
         ..UdspOptions::default()
     }
 }
