@@ -21,7 +21,11 @@
 //! convergence test are the same, so the equilibrium is too; only the path changes. Under
 //! reuse the last factorisation also carries over to the next solve when its tangent has the
 //! same diagonal (shift and springs) and pressure terms: the next load increment starts
-//! where the last one ended, at the same tangent.
+//! where the last one ended, at the same tangent. Once a step has met the update test and
+//! only the residual test is left, every further step takes a fresh tangent: a chord step
+//! there shrinks the update further, but with rigid bodies its stale tangent (the bodies'
+//! arms where they were, across a joint stiffer than bone) raises the residual many times
+//! over (BENCHMARKS.md, "The package check: a single-precision static tangent").
 //!
 //! Anderson acceleration (`StaticOptions::anderson_depth`, off by default; `fem::anderson`):
 //! the steps taken with a reused tangent mix in the last few iterates, which speeds up the
@@ -356,7 +360,9 @@ impl<'m> StaticSolver<'m> {
                     residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
                 });
             }
+            // only the residual test left: fresh tangents (module doc)
             let reuse = (factorisations > 0 || carried)
+                && relative_residual.is_infinite()
                 && options.reuse_tangent_below > 0.0
                 && residual <= options.reuse_tangent_below * previous_residual;
             previous_residual = residual;
