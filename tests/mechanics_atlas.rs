@@ -6,16 +6,18 @@
 //! real-time simulation under a constant pressure settles on the static solution; the
 //! pathologies (fixations, disarticulation) move the response as temporal bones do; rigid
 //! ossicles (the package check's model) answer within bone's own flexibility of the elastic
-//! ones.
+//! ones; a static branch that cannot carry its load stops short, says where, and fails its
+//! gates.
 
 use nalgebra::{Point3, Rotation3, Vector3};
 use otoatlas::atlas::default_atlas;
+use otoatlas::fem::FactorPrecision;
 use otoatlas::fem::HarmonicSolver;
 use otoatlas::mechanics::simulate::{SimulationOptions, simulate};
 use otoatlas::mechanics::udsp::GATE_PRESSURES_PA;
 use otoatlas::mechanics::{
     Condition, MechanicalSystem, Ossicles, StaticCurve, TfaOptions, TransferFunction, UdspOptions,
-    literature_verdict, static_pressure_curve, transfer_function,
+    literature_verdict, relative_verdict, static_pressure_curve, transfer_function,
 };
 
 /// Every transfer-function gate passes but the 250-500 Hz slope: the incudostapedial joint's
@@ -140,6 +142,54 @@ fn rigid_ossicles_answer_within_the_bones_own_flexibility() {
         println!("{p:6.0} Pa: rigid / elastic umbo displacement {ratio:.4}");
         assert!((0.97..1.0).contains(&ratio), "{p} Pa: {ratio}");
     }
+}
+
+/// A curve whose increments cannot reach equilibrium (one Newton iteration each, no halving
+/// allowed) keeps only its rest point and says where each branch stopped; against the atlas's
+/// own curve (the shipped reference) every static gate fails, the loaded-to-the-end one
+/// included, and the transfer function's pass. A
+/// registered model that cannot carry the load is a finding of the check, not an error.
+#[test]
+fn a_static_branch_that_cannot_carry_its_load_stops_short_and_fails_its_gates() {
+    let atlas = default_atlas().unwrap();
+    let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
+    let options = UdspOptions {
+        pressures_pa: GATE_PRESSURES_PA.to_vec(),
+        max_iterations: 1,
+        min_step_pa: 2000.0,
+        ossicles: Ossicles::Rigid,
+        tangent_precision: FactorPrecision::Single,
+        ..UdspOptions::default()
+    };
+    let curve = static_pressure_curve(&system, &options, &otoatlas::progress::Silent).unwrap();
+    println!("{curve:?}");
+    assert_eq!(curve.points.len(), 1);
+    assert_eq!(curve.at(0.0), Some(0.0));
+    let failure = curve.failure.as_deref().unwrap();
+    assert!(
+        failure.contains("static pressure -1000 Pa") && failure.contains("static pressure 1000 Pa"),
+        "{failure}"
+    );
+    let reference = otoatlas::pipeline::mechanics::embedded_reference().unwrap();
+    // the atlas's own transfer function on both sides: only the static gates can fail
+    let tf = &reference.transfer_function;
+    let verdict = relative_verdict(tf, &curve, tf, &reference.static_pressure);
+    let (transfer_gates, static_gates): (Vec<_>, Vec<_>) = verdict
+        .gates
+        .iter()
+        .partition(|g| g.name.contains("Hz") || g.name.contains("peak"));
+    // six pressures, the asymmetry, its side, the load carried to the end
+    assert_eq!(
+        static_gates.len(),
+        GATE_PRESSURES_PA.len() + 3,
+        "{static_gates:?}"
+    );
+    assert!(static_gates.iter().all(|g| !g.passed), "{static_gates:?}");
+    assert!(
+        transfer_gates.iter().all(|g| g.passed),
+        "{transfer_gates:?}"
+    );
+    assert!(!verdict.passed);
 }
 
 /// The umbo's static displacement (mm, medial) at pressure `p`, solved to `tolerance_mm`.
