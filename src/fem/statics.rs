@@ -239,6 +239,9 @@ impl<'m> StaticSolver<'m> {
         let mut previous_residual = f64::INFINITY;
         let mut max_update = f64::INFINITY;
         let mut relative_residual = f64::INFINITY;
+        // a full step has met the update test and only the residual test is left: fresh
+        // tangents from then on (module doc)
+        let mut only_residual_left = false;
         let mut first_residual = None;
         let mut anderson = Anderson::new(options.anderson_depth);
         for iteration in 1..=options.max_iterations {
@@ -269,9 +272,8 @@ impl<'m> StaticSolver<'m> {
                     residual_tolerance: self.residual_tolerance.unwrap_or(f64::INFINITY),
                 });
             }
-            // only the residual test left: fresh tangents (module doc)
             let reuse = (factorisations > 0 || carried)
-                && relative_residual.is_infinite()
+                && !only_residual_left
                 && options.reuse_tangent_below > 0.0
                 && residual <= options.reuse_tangent_below * previous_residual;
             previous_residual = residual;
@@ -294,6 +296,7 @@ impl<'m> StaticSolver<'m> {
             let load = self.residual(x, loads, pressure)?;
             let residual = self.rhs.iter().map(|r| r * r).sum::<f64>().sqrt();
             relative_residual = residual / load.max(f64::MIN_POSITIVE);
+            only_residual_left = true;
             if self
                 .residual_tolerance
                 .is_none_or(|t| relative_residual <= t)
