@@ -71,8 +71,9 @@ pub struct UdspOptions {
     /// The ossicles' model (`Ossicles::Rigid`: `StaticSolver::with_rigid_bodies`).
     pub ossicles: Ossicles,
     /// The precision the tangent is factorised in (`StaticOptions::tangent_precision`). An
-    /// increment that fails with a single-precision tangent is tried again in double
-    /// precision, which the rest of its branch keeps, before it is halved.
+    /// increment that fails with a single-precision tangent is tried again, before it is
+    /// halved, with every later factorisation of its branch in double precision (its first
+    /// step may still take the last, single-precision, factor as a chord).
     pub tangent_precision: FactorPrecision,
 }
 
