@@ -367,6 +367,47 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
         "{stderr}"
     );
     assert_eq!(std::fs::read(out.join("metrics.json")).unwrap(), before);
+    // the same image read from elsewhere (the case moved): resumed as if it had not moved
+    let moved = dir.path().join("moved");
+    copy_tree(&case, &moved);
+    let (code, again) = register(&moved, &out, &["--from", "score"]);
+    assert_eq!(code, 0, "{again}");
+    assert_eq!(again["scores"], full["scores"]);
+    // one voxel of one slice changed by one unit (the uncompressed pixel data ends each
+    // file): the geometry is the same, the image is not; refused, the outputs kept
+    let before = std::fs::read(out.join("metrics.json")).unwrap();
+    let mut slices: Vec<PathBuf> = std::fs::read_dir(moved.join("dicom"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    slices.sort();
+    let mut bytes = std::fs::read(&slices[0]).unwrap();
+    let last = bytes.len() - 2;
+    bytes[last] ^= 1;
+    std::fs::write(&slices[0], bytes).unwrap();
+    let (code, refused) = register(&moved, &out, &["--from", "score"]);
+    assert_eq!(code, 2, "{refused}");
+    let msg = refused["error"].as_str().unwrap();
+    assert!(
+        msg.contains("not the image the earlier run read")
+            && msg.ends_with("(they differ in files_sha256); run from ingest"),
+        "{msg}"
+    );
+    assert_eq!(std::fs::read(out.join("metrics.json")).unwrap(), before);
+}
+
+/// Copies the folder `from` to `to`, recursively.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        let target = to.join(path.file_name().unwrap());
+        if path.is_dir() {
+            copy_tree(&path, &target);
+        } else {
+            std::fs::copy(&path, &target).unwrap();
+        }
+    }
 }
 
 /// A case folder and an output folder whose names are not UTF-8 (possible on Linux): the run

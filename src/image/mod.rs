@@ -83,11 +83,16 @@ pub struct LoadedImage {
 }
 
 /// The ingest stage's record (`OUT/stages/ingest.json`, `metrics.json`'s `image`): where the
-/// image came from and its geometry. `run --from` compares it with the image read again.
+/// image came from, what its files hold and its geometry. `run --from` compares it with the
+/// image read again ([`ImageRecord::differences`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ImageRecord {
     /// The input path (written lossily when it is not UTF-8).
     pub image: String,
+    /// One SHA-256 over the image's files, each by its path inside the image folder (or the
+    /// file's name): the same for a moved or copied image, another for any changed, added,
+    /// removed or renamed file.
+    pub files_sha256: String,
     pub format: String,
     pub dims: [usize; 3],
     pub spacing: [f64; 3],
@@ -99,11 +104,12 @@ pub struct ImageRecord {
 }
 
 impl ImageRecord {
-    /// The record of `loaded`, read from `source`.
-    pub fn of(loaded: &LoadedImage, source: &Path) -> ImageRecord {
+    /// The record of `loaded`, read from `source`, whose files have the digest `files_sha256`.
+    pub fn of(loaded: &LoadedImage, source: &Path, files_sha256: String) -> ImageRecord {
         let v = &loaded.volume;
         ImageRecord {
             image: source.display().to_string(),
+            files_sha256,
             format: loaded.info.format.clone(),
             dims: v.dims,
             spacing: v.spacing,
@@ -112,6 +118,30 @@ impl ImageRecord {
             laterality: loaded.info.laterality.clone(),
             series_uid_sha256: loaded.info.series_uid_sha256.clone(),
         }
+    }
+
+    /// The fields in which `other` records another image than this one: all but the path,
+    /// so that a case read from another place (moved, copied, named relatively or not) is
+    /// the same image.
+    pub fn differences(&self, other: &ImageRecord) -> Vec<&'static str> {
+        let fields = [
+            ("files_sha256", self.files_sha256 == other.files_sha256),
+            ("format", self.format == other.format),
+            ("dims", self.dims == other.dims),
+            ("spacing", self.spacing == other.spacing),
+            ("origin", self.origin == other.origin),
+            ("direction", self.direction == other.direction),
+            ("laterality", self.laterality == other.laterality),
+            (
+                "series_uid_sha256",
+                self.series_uid_sha256 == other.series_uid_sha256,
+            ),
+        ];
+        fields
+            .into_iter()
+            .filter(|(_, same)| !same)
+            .map(|(name, _)| name)
+            .collect()
     }
 }
 
@@ -142,4 +172,96 @@ pub fn load_reporting(
         return nifti::read_nifti(path, cfg);
     }
     dicom::read_dicom(path, series, cfg, progress)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every recorded field but the path tells two images apart, by name.
+    #[test]
+    fn a_record_differs_in_each_field_but_the_path() {
+        let a = ImageRecord {
+            image: "case/dicom".into(),
+            files_sha256: "ab".into(),
+            format: "DICOM".into(),
+            dims: [4, 5, 6],
+            spacing: [0.2; 3],
+            origin: [1.0, 2.0, 3.0],
+            direction: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            laterality: Some("R".into()),
+            series_uid_sha256: Some("cd".into()),
+        };
+        let moved = ImageRecord {
+            image: "elsewhere/case/dicom".into(),
+            ..a.clone()
+        };
+        assert!(a.differences(&moved).is_empty());
+        let changed: [(&str, ImageRecord); 8] = [
+            (
+                "files_sha256",
+                ImageRecord {
+                    files_sha256: "ac".into(),
+                    ..a.clone()
+                },
+            ),
+            (
+                "format",
+                ImageRecord {
+                    format: "NIfTI".into(),
+                    ..a.clone()
+                },
+            ),
+            (
+                "dims",
+                ImageRecord {
+                    dims: [4, 5, 7],
+                    ..a.clone()
+                },
+            ),
+            (
+                "spacing",
+                ImageRecord {
+                    spacing: [0.2, 0.2, 0.25],
+                    ..a.clone()
+                },
+            ),
+            (
+                "origin",
+                ImageRecord {
+                    origin: [1.0, 2.0, 3.5],
+                    ..a.clone()
+                },
+            ),
+            (
+                "direction",
+                ImageRecord {
+                    direction: [-1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                    ..a.clone()
+                },
+            ),
+            (
+                "laterality",
+                ImageRecord {
+                    laterality: None,
+                    ..a.clone()
+                },
+            ),
+            (
+                "series_uid_sha256",
+                ImageRecord {
+                    series_uid_sha256: None,
+                    ..a.clone()
+                },
+            ),
+        ];
+        for (field, b) in &changed {
+            assert_eq!(a.differences(b), [*field]);
+        }
+        // and no recorded field is left out of the comparison
+        let Ok(serde_json::Value::Object(fields)) = serde_json::to_value(&a) else {
+            panic!("a record is a JSON object");
+        };
+        assert_eq!(fields.len(), changed.len() + 1);
+    }
 }

@@ -165,7 +165,8 @@ fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) ->
         return false;
     };
     let same_inputs = case
-        .inputs_sha256(None)
+        .image_digests()
+        .and_then(|image| case.inputs_sha256(&image, None))
         .is_ok_and(|digest| digest == manifest.inputs_sha256);
     let same_atlas = || {
         crate::atlas::load_atlas(opts.atlas.as_deref(), Some(manifest.side))

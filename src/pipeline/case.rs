@@ -12,6 +12,7 @@
 //! A bare image (a DICOM folder without that layout, a DICOM file, a NIfTI file) is accepted
 //! as a case with no landmarks.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::export::digest::{combined_sha256, file_digests};
@@ -96,17 +97,41 @@ impl Case {
     }
 }
 
+/// The SHA-256 of each file of a case's image, by its path inside a DICOM folder (or the
+/// file's name): read once per run, for the ingest record and the package's inputs digest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageDigests(BTreeMap<String, String>);
+
+impl ImageDigests {
+    /// One SHA-256 over the image's files (`ImageRecord::files_sha256`).
+    pub fn sha256(&self) -> String {
+        combined_sha256(self.0.iter().map(|(n, d)| (n.as_str(), d.as_str())))
+    }
+}
+
 impl Case {
-    /// One SHA-256 over the contents of the case's inputs: the image (every file of a DICOM
-    /// folder, by its path inside the folder), the landmark file used (`landmarks_override`,
-    /// else the case's) and the segmentation folder. Paths outside the case do not enter it,
-    /// so a moved or copied case keeps its digest; any changed, added, removed or renamed
-    /// input file changes it. Reads the files once (a few MB per case).
-    pub fn inputs_sha256(&self, landmarks_override: Option<&Path>) -> Result<String, crate::Error> {
-        let mut entries: Vec<(String, String)> = Vec::new();
+    /// Reads the image's files and hashes each of them.
+    pub fn image_digests(&self) -> Result<ImageDigests, crate::Error> {
+        Ok(ImageDigests(file_digests(&self.image)?))
+    }
+
+    /// One SHA-256 over the contents of the case's inputs: the image (its `image` digests),
+    /// the landmark file used (`landmarks_override`, else the case's) and the segmentation
+    /// folder. Paths outside the case do not enter it, so a moved or copied case keeps its
+    /// digest; any changed, added, removed or renamed input file changes it. Reads the
+    /// landmark and segmentation files once.
+    pub fn inputs_sha256(
+        &self,
+        image: &ImageDigests,
+        landmarks_override: Option<&Path>,
+    ) -> Result<String, crate::Error> {
+        let mut entries: Vec<(String, String)> = image
+            .0
+            .iter()
+            .map(|(name, digest)| (format!("image/{name}"), digest.clone()))
+            .collect();
         let landmarks = landmarks_override.or(self.landmarks.as_deref());
         let roles = [
-            ("image", Some(self.image.as_path())),
             ("landmarks", landmarks),
             ("segmentation", self.segmentation.as_deref()),
         ];
@@ -147,6 +172,11 @@ mod tests {
         assert!(Case::open(&dir.path().join("absent")).is_err());
     }
 
+    fn digest(case: &Case, landmarks: Option<&Path>) -> String {
+        let image = case.image_digests().unwrap();
+        case.inputs_sha256(&image, landmarks).unwrap()
+    }
+
     #[test]
     fn inputs_digest_follows_contents_and_the_landmark_file_used() {
         let dir = tempfile::tempdir().unwrap();
@@ -155,25 +185,25 @@ mod tests {
         std::fs::write(case.join("dicom/sub/1.dcm"), b"slice one").unwrap();
         std::fs::write(case.join("landmarks.fcsv"), b"points").unwrap();
         let c = Case::open(&case).unwrap();
-        let d0 = c.inputs_sha256(None).unwrap();
+        let d0 = digest(&c, None);
         // a copy elsewhere has the same digest
         let copy = dir.path().join("copy");
         std::fs::create_dir_all(copy.join("dicom/sub")).unwrap();
         std::fs::write(copy.join("dicom/sub/1.dcm"), b"slice one").unwrap();
         std::fs::write(copy.join("landmarks.fcsv"), b"points").unwrap();
-        assert_eq!(Case::open(&copy).unwrap().inputs_sha256(None).unwrap(), d0);
+        assert_eq!(digest(&Case::open(&copy).unwrap(), None), d0);
         // another landmark file with the same content and name: same; other content: not
         let other = dir.path().join("landmarks.fcsv");
         std::fs::write(&other, b"points").unwrap();
-        assert_eq!(c.inputs_sha256(Some(&other)).unwrap(), d0);
+        assert_eq!(digest(&c, Some(&other)), d0);
         std::fs::write(&other, b"moved points").unwrap();
-        assert_ne!(c.inputs_sha256(Some(&other)).unwrap(), d0);
+        assert_ne!(digest(&c, Some(&other)), d0);
         // one changed image byte, or a segmentation added, changes it
         std::fs::write(case.join("dicom/sub/1.dcm"), b"slice 0ne").unwrap();
-        let d1 = c.inputs_sha256(None).unwrap();
+        let d1 = digest(&c, None);
         assert_ne!(d1, d0);
         std::fs::create_dir_all(case.join("segmentation")).unwrap();
         std::fs::write(case.join("segmentation/incus.ply"), b"ply").unwrap();
-        assert_ne!(Case::open(&case).unwrap().inputs_sha256(None).unwrap(), d1);
+        assert_ne!(digest(&Case::open(&case).unwrap(), None), d1);
     }
 }

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 mod landmarks;
 
-use super::Case;
+use super::case::{Case, ImageDigests};
 use super::score::{Reference, StructureScore, score};
 use super::stage::{Clock, Stage, artefact_path, read_record, run_or_resume};
 use crate::Error;
@@ -87,9 +87,11 @@ pub struct RunSummary {
 }
 
 /// The outputs a run writes after its stages (registered/, metrics, report, timings,
-/// mechanics, the package and its log), removed before anything else: a re-run that fails
-/// half-way never leaves an earlier run's package or report beside its own stages. The
-/// stages' artefacts stay (`--from` reads them).
+/// mechanics, the package and its log), removed as soon as the image is read (and, resumed,
+/// found to be the earlier run's): a re-run that fails half-way never leaves an earlier
+/// run's package or report beside its own stages, and a resumed run refused for another side
+/// or another image leaves them as they were. The stages' artefacts stay (`--from` reads
+/// them).
 fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
     for name in [
         PACKAGE_DIR,
@@ -124,6 +126,8 @@ struct Context<'a> {
 struct Ingested {
     loaded: LoadedImage,
     record: ImageRecord,
+    /// Its files' digests (the record's and the package's inputs digest).
+    digests: ImageDigests,
     /// The probe step: the smallest voxel spacing [mm].
     step: f64,
 }
@@ -180,9 +184,8 @@ pub fn run_case(
     let started = Instant::now();
     let mut clock = Clock::default();
     landmarks::check_resumed_side(opts)?;
-    remove_previous_outputs(out)?;
-
     let ingested = ingest(cx, &mut clock)?;
+    remove_previous_outputs(out)?;
     let sampler = Sampler::new(&ingested.loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
             "{}: the image geometry is degenerate",
@@ -305,7 +308,7 @@ pub fn run_case(
         deform: &deformed.record,
         config,
         series_uid_sha256: ingested.loaded.info.series_uid_sha256.clone(),
-        inputs_sha256: case.inputs_sha256(opts.landmarks.as_deref())?,
+        inputs_sha256: case.inputs_sha256(&ingested.digests, opts.landmarks.as_deref())?,
         mechanics: validation.as_ref().map(MechanicsSummary::of),
         patient,
     };
@@ -330,16 +333,20 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
     let t = Instant::now();
     progress.log(&format!("{}: ingest {}", case.id, case.image.display()));
     let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
-    let record = ImageRecord::of(&loaded, &case.image);
+    let digests = case.image_digests()?;
+    let record = ImageRecord::of(&loaded, &case.image, digests.sha256());
     if opts.from <= Stage::Ingest {
         write_json_file(&artefact_path(&opts.out, Stage::Ingest), &record)?;
     } else {
         let before: ImageRecord = read_record(&opts.out, Stage::Ingest, opts.from)?;
-        if before != record {
+        let differences = before.differences(&record);
+        if !differences.is_empty() {
             return Err(Error::Usage(format!(
-                "--from {}: the image differs from the one in {}; run from ingest",
+                "--from {}: {} is not the image the earlier run read from {} (they differ in {}); run from ingest",
                 opts.from.name(),
-                artefact_path(&opts.out, Stage::Ingest).display()
+                case.image.display(),
+                before.image,
+                differences.join(", ")
             )));
         }
     }
@@ -348,6 +355,7 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
     Ok(Ingested {
         loaded,
         record,
+        digests,
         step,
     })
 }
