@@ -234,8 +234,10 @@ fn validation_can_be_switched_off() {
     let dir = tempfile::tempdir().unwrap();
     let config = common::config_without_validation(dir.path());
     let out = dir.path().join("out");
-    // a previous run's verdict must not survive a run without validation
-    std::fs::create_dir_all(&out).unwrap();
+    // a previous run's verdict must not survive a run without validation (a previous run's
+    // folder: its first stage's artefact beside the verdict)
+    std::fs::create_dir_all(out.join("stages")).unwrap();
+    std::fs::write(out.join("stages/ingest.json"), "{}").unwrap();
     std::fs::write(out.join("mechanics.json"), "{}").unwrap();
     let case = common::root().join("sample_cases/case-001");
     let o = common::otoatlas(&[

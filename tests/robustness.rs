@@ -1174,6 +1174,42 @@ fn mutated_inputs_end_in_success_or_a_typed_error() {
     );
 }
 
+/// `run --out` at a folder of the user's own that holds a `report.html` and a `registered/`
+/// folder (names a run writes) removed both before reading the image. It is bad usage now,
+/// said before any work, and both are kept.
+#[test]
+fn an_out_of_the_users_own_is_never_emptied() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("notes");
+    std::fs::create_dir_all(out.join("registered")).unwrap();
+    std::fs::write(out.join("registered/scan.ply"), "mine").unwrap();
+    std::fs::write(out.join("report.html"), "<p>mine</p>").unwrap();
+    std::fs::write(out.join("todo.txt"), "mine").unwrap();
+    let case = common::root().join("sample_cases/case-002");
+    let run = common::otoatlas(&[
+        "--quiet",
+        "run",
+        case.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("holds registered, report.html but no stages/ingest.json"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("registered/scan.ply")).unwrap(),
+        "mine"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("report.html")).unwrap(),
+        "<p>mine</p>"
+    );
+    assert!(!out.join("stages").exists());
+}
+
 /// `run --out` at a file, or where nothing can be written, was exit 1 (a failed case) after
 /// the first stage; `batch --out` so too, after every case had failed; `landmarks --out` after
 /// the image was read and every landmark typed. Each is bad usage (2), said before any work.

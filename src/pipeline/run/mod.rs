@@ -93,7 +93,19 @@ pub struct RunSummary {
 /// or another image leaves them as they were. The stages' artefacts stay (`--from` reads
 /// them).
 fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
-    for name in [
+    for (path, metadata) in previous_outputs(out) {
+        let removed = match metadata.is_dir() {
+            true => std::fs::remove_dir_all(&path),
+            false => std::fs::remove_file(&path),
+        };
+        removed.map_err(crate::io_util::io_err(&path))?;
+    }
+    Ok(())
+}
+
+/// The outputs of an earlier run present in `out` (`remove_previous_outputs`).
+fn previous_outputs(out: &Path) -> Vec<(PathBuf, std::fs::Metadata)> {
+    [
         PACKAGE_DIR,
         "package.log.json",
         "registered",
@@ -101,16 +113,32 @@ fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
         "report.html",
         "timings.json",
         "mechanics.json",
-    ] {
-        let path = out.join(name);
-        let removed = match std::fs::symlink_metadata(&path) {
-            Ok(m) if m.is_dir() => std::fs::remove_dir_all(&path),
-            Ok(_) => std::fs::remove_file(&path),
-            Err(_) => continue,
-        };
-        removed.map_err(crate::io_util::io_err(&path))?;
+    ]
+    .iter()
+    .map(|name| out.join(name))
+    .filter_map(|path| std::fs::symlink_metadata(&path).ok().map(|m| (path, m)))
+    .collect()
+}
+
+/// Refuses an `out` that holds what a run would replace (`previous_outputs`) but is not an
+/// earlier run's output folder (it has no `stages/ingest.json`, the first thing a run
+/// writes): a report, a `registered/` folder or a package of the user's own, in a folder
+/// given as `--out` by mistake, is never removed.
+fn check_out_is_a_run(out: &Path) -> Result<(), Error> {
+    let found = previous_outputs(out);
+    if found.is_empty() || artefact_path(out, Stage::Ingest).is_file() {
+        return Ok(());
     }
-    Ok(())
+    let names: Vec<String> = found
+        .iter()
+        .filter_map(|(path, _)| path.file_name())
+        .map(|name| name.to_string_lossy().into_owned())
+        .collect();
+    Err(Error::Usage(format!(
+        "--out {}: holds {} but no stages/ingest.json, so it is not an earlier run's output, and a run would replace them; expected a new or empty folder, or a previous run's",
+        out.display(),
+        names.join(", ")
+    )))
 }
 
 /// What every stage of one run reads.
@@ -184,6 +212,7 @@ pub fn run_case(
     let started = Instant::now();
     let mut clock = Clock::default();
     landmarks::check_resumed_side(opts)?;
+    check_out_is_a_run(out)?;
     let ingested = ingest(cx, &mut clock)?;
     remove_previous_outputs(out)?;
     let sampler = Sampler::new(&ingested.loaded.volume).ok_or_else(|| {
