@@ -91,7 +91,9 @@ pub struct ImageRecord {
     pub image: String,
     /// One SHA-256 over the image's files, each by its path inside the image folder (or the
     /// file's name): the same for a moved or copied image, another for any changed, added,
-    /// removed or renamed file.
+    /// removed or renamed file. Empty in a record written before it was kept (such a run is
+    /// resumed from ingest only).
+    #[serde(default)]
     pub files_sha256: String,
     pub format: String,
     pub dims: [usize; 3],
