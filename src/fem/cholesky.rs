@@ -92,12 +92,23 @@ pub enum FactorPrecision {
 }
 
 /// The single-precision factor and the buffers that convert to and from it.
-#[derive(Default)]
 struct SingleFactor {
     l_values: Vec<f32>,
     matrix: Vec<f32>,
     rhs: Vec<f32>,
-    scratch: Option<MemBuffer>,
+    scratch: MemBuffer,
+}
+
+impl SingleFactor {
+    /// Room for a factor of `symbolic`'s pattern.
+    fn new(symbolic: &SymbolicCholesky<usize>, par: Par) -> Self {
+        SingleFactor {
+            l_values: vec![0.0; symbolic.len_val()],
+            matrix: Vec::new(),
+            rhs: Vec::new(),
+            scratch: scratch::<f32>(symbolic, par),
+        }
+    }
 }
 
 /// A reusable sparse Cholesky factorisation for one sparsity pattern. A clone shares the
@@ -107,7 +118,7 @@ pub struct SparseCholesky {
     l_values: Vec<f64>,
     scratch: MemBuffer,
     /// Allocated at the first single-precision factorisation.
-    single: SingleFactor,
+    single: Option<SingleFactor>,
     par: Par,
     /// The precision of the last successful factorisation, if any.
     factorised: Option<FactorPrecision>,
@@ -136,20 +147,14 @@ fn scratch<T: faer::traits::ComplexField>(
 
 impl Clone for SparseCholesky {
     fn clone(&self) -> Self {
-        let single = &self.single;
         SparseCholesky {
             symbolic: Arc::clone(&self.symbolic),
             l_values: self.l_values.clone(),
             scratch: scratch::<f64>(&self.symbolic, self.par),
-            single: SingleFactor {
+            single: self.single.as_ref().map(|single| SingleFactor {
                 l_values: single.l_values.clone(),
-                matrix: Vec::new(),
-                rhs: Vec::new(),
-                scratch: single
-                    .scratch
-                    .as_ref()
-                    .map(|_| scratch::<f32>(&self.symbolic, self.par)),
-            },
+                ..SingleFactor::new(&self.symbolic, self.par)
+            }),
             par: self.par,
             factorised: self.factorised,
         }
@@ -212,7 +217,7 @@ impl SparseCholesky {
         Ok(SparseCholesky {
             l_values: vec![0.0; symbolic.len_val()],
             scratch: scratch::<f64>(&symbolic, par),
-            single: SingleFactor::default(),
+            single: None,
             symbolic: Arc::new(symbolic),
             par,
             factorised: None,
@@ -268,20 +273,18 @@ impl SparseCholesky {
         matrix: SparseColMatRef<'_, usize, f64>,
     ) -> Result<(), FemError> {
         let (symbolic, par) = (&self.symbolic, self.par);
-        let single = &mut self.single;
-        single.l_values.resize(symbolic.len_val(), 0.0);
+        let single = self
+            .single
+            .get_or_insert_with(|| SingleFactor::new(symbolic, par));
         single.matrix.clear();
         single.matrix.extend(matrix.val().iter().map(|&v| v as f32));
-        let scratch = single
-            .scratch
-            .get_or_insert_with(|| scratch::<f32>(symbolic, par));
         pivot_error(symbolic.factorize_numeric_llt(
             &mut single.l_values,
             SparseColMatRef::new(matrix.symbolic(), &single.matrix),
             Side::Lower,
             Default::default(),
             par,
-            MemStack::new(scratch),
+            MemStack::new(&mut single.scratch),
             Default::default(),
         ))
     }
@@ -289,11 +292,6 @@ impl SparseCholesky {
     /// Solves A x = rhs in place with the last factorisation (`rhs` has one entry per DOF),
     /// in the precision it was made in.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) -> Result<(), FemError> {
-        let Some(precision) = self.factorised else {
-            return Err(FemError::Factorisation {
-                message: "solve requested without a successful numeric factorisation".into(),
-            });
-        };
         let n = self.symbolic.nrows();
         if rhs.len() != n {
             return Err(FemError::LengthMismatch {
@@ -303,38 +301,40 @@ impl SparseCholesky {
             });
         }
         let _clean = DenseKernels::parallel();
-        match precision {
-            FactorPrecision::Single => {
+        match (self.factorised, &mut self.single) {
+            (Some(FactorPrecision::Single), Some(single)) => {
                 let SingleFactor {
                     l_values,
-                    rhs: single,
-                    scratch: Some(scratch),
+                    rhs: rounded,
+                    scratch,
                     ..
-                } = &mut self.single
-                else {
-                    return Err(FemError::Factorisation {
-                        message: "single-precision solve without its scratch".into(),
-                    });
-                };
-                single.clear();
-                single.extend(rhs.iter().map(|&v| v as f32));
+                } = single;
+                rounded.clear();
+                rounded.extend(rhs.iter().map(|&v| v as f32));
                 LltRef::new(&self.symbolic, l_values).solve_in_place_with_conj(
                     Conj::No,
-                    MatMut::from_column_major_slice_mut(single, n, 1),
+                    MatMut::from_column_major_slice_mut(rounded, n, 1),
                     self.par,
                     MemStack::new(scratch),
                 );
-                for (r, s) in rhs.iter_mut().zip(single.iter()) {
+                for (r, s) in rhs.iter_mut().zip(rounded.iter()) {
                     *r = f64::from(*s);
                 }
             }
-            FactorPrecision::Double => LltRef::new(&self.symbolic, &self.l_values)
+            (Some(FactorPrecision::Double), _) => LltRef::new(&self.symbolic, &self.l_values)
                 .solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(rhs, n, 1),
                     self.par,
                     MemStack::new(&mut self.scratch),
                 ),
+            // no factorisation yet, or the last one failed (a single-precision factor always
+            // has its buffers)
+            _ => {
+                return Err(FemError::Factorisation {
+                    message: "solve requested without a successful numeric factorisation".into(),
+                });
+            }
         }
         Ok(())
     }
