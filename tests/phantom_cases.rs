@@ -281,6 +281,40 @@ fn bad_arguments_exit_with_code_2_and_a_clear_message() {
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
 }
 
+/// `phantom --out COHORT` where COHORT/case-002 is a patient's case (no truth.json) replaced
+/// it with a phantom. Refused before any case is made, the patient's files kept.
+#[test]
+fn a_case_that_is_not_a_phantom_is_never_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let patient = dir.path().join("case-002");
+    fs::create_dir_all(patient.join("dicom")).unwrap();
+    fs::write(patient.join("dicom/slice-1.dcm"), b"a patient's slice").unwrap();
+    fs::write(patient.join("landmarks.fcsv"), b"a patient's picks").unwrap();
+    let o = common::otoatlas(&[
+        "phantom",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--cases",
+        "2",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("case-002 exists and is not a phantom (no truth.json)"),
+        "{stderr}"
+    );
+    assert_eq!(
+        fs::read(patient.join("dicom/slice-1.dcm")).unwrap(),
+        b"a patient's slice"
+    );
+    assert_eq!(
+        fs::read(patient.join("landmarks.fcsv")).unwrap(),
+        b"a patient's picks"
+    );
+    // case-001 was not made either: the check comes before any work
+    assert!(!dir.path().join("case-001").exists());
+}
+
 #[test]
 fn committed_sample_cases_are_what_the_generator_makes_and_read_back() {
     let root = common::root().join("sample_cases");

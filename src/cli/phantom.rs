@@ -77,6 +77,28 @@ fn check_writable(dir: &Path) -> Result<(), Error> {
     std::fs::remove_file(&probe).map_err(unwritable)
 }
 
+/// The folder of the `k`-th case (from 1) under `out`.
+fn case_dir(out: &Path, k: u64) -> PathBuf {
+    out.join(format!("case-{k:03}"))
+}
+
+/// Refuses, before any work, a `--out` where a case folder this run would replace is not a
+/// phantom (it has no `truth.json`, which every phantom has): a patient's case in a cohort
+/// folder given as `--out` by mistake is never replaced.
+fn check_replaceable(out: &Path, cases: u32) -> Result<(), Error> {
+    for k in 1..=u64::from(cases) {
+        let dir = case_dir(out, k);
+        if dir.exists() && !dir.join("truth.json").is_file() {
+            return Err(Error::Usage(format!(
+                "--out {}: {} exists and is not a phantom (no truth.json); phantom replaces only its own cases, so give another --out",
+                out.display(),
+                dir.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error> {
     if args.cases == 0 {
         return Err(Error::Usage("--cases 0: expected at least one case".into()));
@@ -97,6 +119,7 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
         .map_err(PhantomError::from)?
         .map(ChainPhantoms::new);
     check_writable(&args.out)?;
+    check_replaceable(&args.out, args.cases)?;
     let bar = progress.task("phantom", u64::from(args.cases));
     let mut text = String::new();
     let mut cases = Vec::new();
@@ -107,7 +130,7 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
             Some(chain) => generate_chain_case(seed, &options, chain)?,
             None => generate_case(seed, &options)?,
         };
-        let path = write_case(&args.out.join(format!("case-{k:03}")), &case)?;
+        let path = write_case(&case_dir(&args.out, k), &case)?;
         let seconds = start.elapsed().as_secs_f64();
         let t = &case.truth;
         let _ = writeln!(
