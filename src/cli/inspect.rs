@@ -7,6 +7,7 @@ use clap::Args;
 use serde_json::json;
 
 use super::Report;
+use super::series_arg::SeriesArg;
 use crate::config::Config;
 use crate::progress::Reporter;
 use crate::{Error, image};
@@ -21,10 +22,8 @@ pub struct InspectArgs {
     /// A folder of DICOM files (searched recursively), a DICOM file, or a NIfTI file (.nii,
     /// .nii.gz, or the .hdr of a .hdr/.img pair).
     pub path: PathBuf,
-    /// Which series to read when the folder holds several: a SeriesInstanceUID or a prefix
-    /// (at least 6 hex digits) of its SHA-256 as listed.
-    #[arg(long, value_name = "UID")]
-    pub series: Option<String>,
+    #[command(flatten)]
+    pub series: SeriesArg,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -36,8 +35,12 @@ pub fn run(
     progress: &dyn Reporter,
 ) -> Result<Report, Error> {
     let config = Config::load(config)?;
-    let loaded =
-        image::load_reporting(&args.path, args.series.as_deref(), &config.ingest, progress)?;
+    let loaded = image::load_reporting(
+        &args.path,
+        args.series.uid.as_deref(),
+        &config.ingest,
+        progress,
+    )?;
     let v = &loaded.volume;
     let info = &loaded.info;
     let (hu_min, hu_max) = v.value_range().unwrap_or((f32::NAN, f32::NAN));

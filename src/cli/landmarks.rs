@@ -9,6 +9,7 @@ use serde_json::json;
 
 use super::Report;
 use super::out_arg::check_out_file;
+use super::series_arg::SeriesArg;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::{LandmarkName, Side, write_fcsv, write_json};
@@ -58,6 +59,8 @@ pub struct LandmarksArgs {
     /// --suggest.
     #[arg(long, value_name = "DIR")]
     pub atlas: Option<PathBuf>,
+    #[command(flatten)]
+    pub series: SeriesArg,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -90,7 +93,12 @@ pub fn run(
     let case = Case::open(&args.case)?;
     let (fcsv, json_path) = out_paths(args, &case);
     check_out_file(&fcsv)?;
-    let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
+    let loaded = image::load_reporting(
+        &case.image,
+        args.series.uid.as_deref(),
+        &config.ingest,
+        progress,
+    )?;
     let sampler = Sampler::new(&loaded.volume).ok_or_else(|| {
         Error::Usage(format!(
             "{}: the image geometry is degenerate",

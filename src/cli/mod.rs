@@ -11,6 +11,7 @@ mod package_arg;
 mod phantom;
 mod progress;
 mod run;
+mod series_arg;
 mod simulate;
 mod validate;
 mod verify;

@@ -7,6 +7,7 @@ use clap::Args;
 
 use super::Report;
 use super::out_arg::check_out_dir;
+use super::series_arg::SeriesArg;
 use crate::Error;
 use crate::config::Config;
 use crate::ear::Side;
@@ -41,6 +42,8 @@ pub struct RunArgs {
     /// Landmark file to use instead of the case's (.fcsv, .mrk.json, .json, .csv).
     #[arg(long, value_name = "FILE")]
     pub landmarks: Option<PathBuf>,
+    #[command(flatten)]
+    pub series: SeriesArg,
     /// Propose the landmarks from the image (`otoatlas landmarks --auto`) instead of reading
     /// them; the case's own landmark file is not read.
     #[arg(long, conflicts_with = "landmarks")]
@@ -79,6 +82,7 @@ pub fn run(
         out: args.out.clone(),
         from: args.from,
         landmarks: args.landmarks.clone(),
+        series: args.series.uid.clone(),
         atlas: args.atlas.clone(),
         side: args.side,
         keep_phi: args.keep_phi,

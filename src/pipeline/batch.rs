@@ -125,6 +125,7 @@ fn run_one(
         out,
         from: Stage::Ingest,
         landmarks: None,
+        series: None,
         atlas: opts.atlas.clone(),
         side: None,
         keep_phi: opts.keep_phi,

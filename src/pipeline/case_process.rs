@@ -304,6 +304,7 @@ pub fn serve(input: impl Read, output: impl Write + Send) -> bool {
                     out: job.out.clone().into(),
                     from: Stage::Ingest,
                     landmarks: None,
+                    series: None,
                     atlas: job.atlas.clone().map(PathBuf::from),
                     side: None,
                     keep_phi: job.keep_phi,

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use super::scan::{has_dicom_marker, list_files};
 use super::tags as attr;
 use crate::image::ImageError;
+use crate::io_util::sha256_hex;
 
 /// Who the images are of, as the first DICOM file of the series says (absent fields: None).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -23,9 +24,14 @@ pub struct PatientIdentity {
     pub accession_number: Option<String>,
 }
 
-/// The identity in the first DICOM file (in path order) at `path`, a folder or a file;
-/// `None` when there is no DICOM file (a NIfTI image carries no identity).
-pub fn read_patient_identity(path: &Path) -> Result<Option<PatientIdentity>, ImageError> {
+/// The identity in the first DICOM file (in path order) at `path`, a folder or a file, of the
+/// series whose SeriesInstanceUID has the SHA-256 `series_uid_sha256` (`ImageInfo`'s: the
+/// series ingest read, in a folder that may hold others, of other patients too); of any series
+/// when `None`. `None` when there is no such file (a NIfTI image carries no identity).
+pub fn read_patient_identity(
+    path: &Path,
+    series_uid_sha256: Option<&str>,
+) -> Result<Option<PatientIdentity>, ImageError> {
     let files = if path.is_dir() {
         list_files(path)?
     } else {
@@ -42,6 +48,11 @@ pub fn read_patient_identity(path: &Path) -> Result<Option<PatientIdentity>, Ima
                 path: file.clone(),
                 message: e.to_string(),
             })?;
+        let series = attr::string(&obj, tags::SERIES_INSTANCE_UID);
+        let wanted = |digest: &str| series.is_some_and(|uid| sha256_hex(uid.as_bytes()) == digest);
+        if !series_uid_sha256.is_none_or(wanted) {
+            continue;
+        }
         return Ok(Some(PatientIdentity {
             patient_name: attr::string(&obj, tags::PATIENT_NAME),
             patient_id: attr::string(&obj, tags::PATIENT_ID),

@@ -52,6 +52,9 @@ pub struct RunOptions {
     pub from: Stage,
     /// A landmark file that replaces the case's.
     pub landmarks: Option<PathBuf>,
+    /// The DICOM series to read where the case's folder holds several (its SeriesInstanceUID,
+    /// or a prefix of at least 6 hex digits of its SHA-256, as `inspect` lists them).
+    pub series: Option<String>,
     /// An atlas folder instead of the embedded default.
     pub atlas: Option<PathBuf>,
     /// The side of the ear, overriding the landmark file and the DICOM.
@@ -326,7 +329,10 @@ pub fn run_case(
     write_timings(out, &clock, started, deformed.level_seconds)?;
     // keep last: a package is present only for a case that finished
     let patient = match opts.keep_phi {
-        true => read_patient_identity(&case.image)?,
+        true => read_patient_identity(
+            &case.image,
+            ingested.loaded.info.series_uid_sha256.as_deref(),
+        )?,
         false => None,
     };
     let package = PackageInput {
@@ -361,7 +367,12 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
     progress.case_stage(&case.id, Stage::Ingest.name());
     let t = Instant::now();
     progress.log(&format!("{}: ingest {}", case.id, case.image.display()));
-    let loaded = image::load_reporting(&case.image, None, &config.ingest, progress)?;
+    let loaded = image::load_reporting(
+        &case.image,
+        opts.series.as_deref(),
+        &config.ingest,
+        progress,
+    )?;
     let digests = case.image_digests()?;
     let record = ImageRecord::of(&loaded, &case.image, digests.sha256());
     if opts.from <= Stage::Ingest {
