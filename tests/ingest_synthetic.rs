@@ -292,6 +292,43 @@ fn two_series_in_one_folder_need_a_choice() {
     assert_eq!(json2["series_uid_sha256"], json["series_uid_sha256"]);
 }
 
+/// A scout beside the volume, as scanner exports put it: one slice in a series of its own,
+/// ImageType ORIGINAL\PRIMARY\LOCALIZER. It made the folder "2 image series" and asked for a
+/// choice; it is skipped with a note, and the volume is read as if alone. The same slice
+/// marked AXIAL is a second series and still needs a choice.
+#[test]
+fn a_localizer_beside_the_series_is_skipped_with_a_note() {
+    let (dir, _) = series_dir("volume");
+    let scout = pattern([4, 4, 1], [0.5, 0.5, 1.0], Matrix3::identity());
+    let scouts = write_series(
+        &dir.path().join("scout"),
+        &scout,
+        &identity("scout"),
+        &FIXED,
+    )
+    .unwrap();
+    let mark = |types: [&str; 3]| {
+        edit_file(&scouts[0], |obj| {
+            obj.put(DataElement::new(
+                tags::IMAGE_TYPE,
+                VR::CS,
+                PrimitiveValue::Strs(types.map(String::from).to_vec().into()),
+            ));
+        })
+    };
+    mark(["ORIGINAL", "PRIMARY", "LOCALIZER"]);
+    let back = read(dir.path()).unwrap();
+    assert_eq!(back.volume.dims, [4, 4, 6]);
+    assert_eq!(back.info.notes.len(), 1, "{:?}", back.info.notes);
+    assert!(
+        back.info.notes[0].contains("localizer"),
+        "{:?}",
+        back.info.notes
+    );
+    mark(["ORIGINAL", "PRIMARY", "AXIAL"]);
+    assert_bad_input(dir.path(), "2 image series");
+}
+
 #[test]
 fn truncated_file_is_named() {
     let (dir, paths) = series_dir("trunc");

@@ -210,6 +210,12 @@ fn scan_file(path: &Path, max_bytes: u64) -> Result<Scanned, ImageError> {
             reason: kind.into(),
         });
     }
+    if is_localizer(&obj) {
+        return Ok(Scanned::Skipped {
+            path: path.to_path_buf(),
+            reason: "a localizer (scout) image, not part of a volume (ImageType LOCALIZER)".into(),
+        });
+    }
     let rows = attr::int(&obj, tags::ROWS, "Rows (0028,0010)", path)?;
     let columns = attr::int(&obj, tags::COLUMNS, "Columns (0028,0011)", path)?;
     let (Some(rows), Some(columns)) = (rows, columns) else {
@@ -240,6 +246,13 @@ fn scan_file(path: &Path, max_bytes: u64) -> Result<Scanned, ImageError> {
         size,
     )?;
     Ok(Scanned::Image(Box::new(header)))
+}
+
+/// Whether ImageType's third value is LOCALIZER (the CT and MR image IODs' term for a scout
+/// that planned the scan): exports put such images beside the volume, in their own series.
+fn is_localizer(obj: &InMemDicomObject) -> bool {
+    attr::string(obj, tags::IMAGE_TYPE)
+        .is_some_and(|t| t.split('\\').nth(2).map(str::trim) == Some("LOCALIZER"))
 }
 
 fn read_image_header(
