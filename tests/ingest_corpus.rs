@@ -98,7 +98,9 @@ fn folder_with_many_series_lists_them_and_series_picks_one() {
     let (code, json) = otoatlas_json(&["inspect", path]);
     assert_eq!(code, 2);
     let msg = json["error"].as_str().unwrap();
-    assert!(msg.contains("13 image series"), "{msg}");
+    // 13 series of images (pydicom counts them so); 98892001/CT2N's two slices are
+    // localizers (ImageType LOCALIZER), skipped
+    assert!(msg.contains("12 image series"), "{msg}");
     assert!(msg.contains("887a203c8fb65565"), "{msg}");
     // the listed hash prefix selects CT5N
     let (code, json) = otoatlas_json(&["inspect", path, "--series", "887a203c8fb65565"]);
@@ -106,6 +108,14 @@ fn folder_with_many_series_lists_them_and_series_picks_one() {
     assert_eq!(json["dims"], serde_json::json!([16, 16, 5]));
     let (code, _) = otoatlas_json(&["inspect", path, "--series", "ffffffff"]);
     assert_eq!(code, 2);
+    let ct2n = testdata(&format!("{PYD}/dicomdirtests/98892001/CT2N")).unwrap();
+    let (code, json) = otoatlas_json(&["inspect", ct2n.to_str().unwrap()]);
+    assert_eq!(code, 2, "{json}");
+    let msg = json["error"].as_str().unwrap();
+    assert!(
+        msg.contains("no DICOM image series found (2 files skipped: non-image objects, localizers"),
+        "{msg}"
+    );
 }
 
 fn assert_same_voxels(a: &LoadedImage, b: &LoadedImage, what: &str) {

@@ -350,7 +350,7 @@ fn non_dicom_and_empty_inputs_are_clear_errors() {
     fs::write(&txt, "not an image").unwrap();
     assert_bad_input(
         dir.path(),
-        "no DICOM image series found (1 non-image or non-DICOM files skipped)",
+        "no DICOM image series found (1 files skipped: non-image objects, localizers or non-DICOM files)",
     );
     assert_bad_input(&txt, "not a DICOM file");
     assert_bad_input(&dir.path().join("absent"), "no such file or folder");

@@ -149,7 +149,7 @@ fn mib(size: f64) -> String {
 fn skipped_note(skipped: &usize) -> String {
     match skipped {
         0 => String::new(),
-        n => format!(" ({n} non-image or non-DICOM files skipped)"),
+        n => format!(" ({n} files skipped: non-image objects, localizers or non-DICOM files)"),
     }
 }
 
