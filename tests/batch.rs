@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
+use crate::common;
 use serde_json::Value;
 
 fn otoatlas() -> Command {
@@ -21,24 +22,11 @@ fn samples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_cases")
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), &target).unwrap();
-        }
-    }
-}
-
 /// A cohort of the three sample cases in a temporary folder.
 fn sample_cohort(root: &Path) -> PathBuf {
     let cohort = root.join("cohort");
     for id in ["case-001", "case-002", "case-003"] {
-        copy_dir(&samples().join(id), &cohort.join(id));
+        common::copy_dir(&samples().join(id), &cohort.join(id));
     }
     cohort
 }
@@ -81,7 +69,7 @@ fn a_failing_case_is_recorded_and_the_others_finish() {
         cohort.join("misnamed/scan.nii.gz"),
     )
     .unwrap();
-    copy_dir(
+    common::copy_dir(
         &samples().join("case-001/segmentation"),
         &cohort.join("group/nested-case/dicom"),
     );
@@ -485,7 +473,7 @@ fn resume_reruns_exactly_the_cases_that_changed() {
 fn a_case_killed_by_a_signal_fails_alone_and_resume_still_works() {
     let dir = tempfile::tempdir().unwrap();
     let cohort = dir.path().join("cohort");
-    copy_dir(&samples().join("case-001"), &cohort.join("a-small"));
+    common::copy_dir(&samples().join("case-001"), &cohort.join("a-small"));
     // b-large: a valid NIfTI of 1024 x 1024 x 300 int16 voxels (a sparse file, no disk): its
     // 600 MiB of voxels and their 1200 MiB as HU are within ingest.max_volume_mib, but not
     // within the case's 1536 MiB of address space, and the allocation that fails aborts

@@ -67,14 +67,6 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     out
 }
 
-fn copy_tree(from: &Path, to: &Path) {
-    for (rel, bytes) in tree(from) {
-        let p = to.join(rel);
-        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
-        std::fs::write(p, bytes).unwrap();
-    }
-}
-
 /// `otoatlas verify DIR --json`: exit code and report.
 fn verify(dir: &Path) -> (i32, Value) {
     common::otoatlas_json(&["verify", dir.to_str().unwrap()])
@@ -114,7 +106,7 @@ fn verify_accepts_a_fresh_package_and_names_each_fault() {
     let work = tempfile::tempdir().unwrap();
     let variant = |name: &str, change: &dyn Fn(&Path)| {
         let dir = work.path().join(name);
-        copy_tree(&package, &dir);
+        common::copy_dir(&package, &dir);
         change(&dir);
         let (code, report) = verify(&dir);
         assert_eq!(code, 1, "{name}: {report}");
@@ -210,7 +202,7 @@ fn verify_accepts_a_fresh_package_and_names_each_fault() {
         ),
     ] {
         let dir = work.path().join(name);
-        copy_tree(&package, &dir);
+        common::copy_dir(&package, &dir);
         edit_scene(&dir, from, to);
         let (code, report) = verify(&dir);
         assert_eq!(code, 1, "{name}: {report}");
@@ -606,7 +598,7 @@ fn verify_refuses_links_special_files_and_oversized_meshes() {
     let package = base_run().join("package");
     let work = tempfile::tempdir().unwrap();
     let dir = work.path().join("odd");
-    copy_tree(&package, &dir);
+    common::copy_dir(&package, &dir);
     let outside = work.path().join("outside.json");
     std::fs::copy(dir.join("landmarks.json"), &outside).unwrap();
     std::fs::remove_file(dir.join("landmarks.json")).unwrap();
@@ -745,7 +737,7 @@ fn verify_bounds_element_quality_and_names_a_flattened_tetrahedron() {
         .expect("a stapes tetrahedron to flatten");
     let work = tempfile::tempdir().unwrap();
     let dir = work.path().join("flat");
-    copy_tree(&package, &dir);
+    common::copy_dir(&package, &dir);
     let (node, [x, y, z]) = moved;
     let nodes_at = text.find("$Nodes\n").unwrap();
     let line_start = nodes_at + text[nodes_at..].find(&format!("\n{} ", node + 1)).unwrap() + 1;
@@ -910,7 +902,7 @@ fn a_folder_of_two_series_reads_the_one_asked_for_and_its_patient() {
     let dir = tempfile::tempdir().unwrap();
     let case = dir.path().join("two");
     for k in [1, 2] {
-        copy_tree(
+        common::copy_dir(
             &common::root().join(format!("sample_cases/case-00{k}/dicom")),
             &case.join("dicom"),
         );
@@ -995,7 +987,7 @@ fn a_folder_of_two_series_reads_the_one_asked_for_and_its_patient() {
 fn a_failed_rerun_leaves_no_earlier_package_or_report() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    copy_tree(base_run(), &out);
+    common::copy_dir(base_run(), &out);
     assert!(out.join("package/manifest.json").is_file());
     let bad = dir.path().join("bad.fcsv");
     std::fs::write(&bad, "not,a,markup\n").unwrap();

@@ -369,7 +369,7 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
     assert_eq!(std::fs::read(out.join("metrics.json")).unwrap(), before);
     // the same image read from elsewhere (the case moved): resumed as if it had not moved
     let moved = dir.path().join("moved");
-    copy_tree(&case, &moved);
+    common::copy_dir(&case, &moved);
     let (code, again) = register(&moved, &out, &["--from", "score"]);
     assert_eq!(code, 0, "{again}");
     assert_eq!(again["scores"], full["scores"]);
@@ -394,20 +394,6 @@ fn resuming_from_a_stage_reuses_the_earlier_artefacts() {
         "{msg}"
     );
     assert_eq!(std::fs::read(out.join("metrics.json")).unwrap(), before);
-}
-
-/// Copies the folder `from` to `to`, recursively.
-fn copy_tree(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let path = entry.unwrap().path();
-        let target = to.join(path.file_name().unwrap());
-        if path.is_dir() {
-            copy_tree(&path, &target);
-        } else {
-            std::fs::copy(&path, &target).unwrap();
-        }
-    }
 }
 
 /// A case folder and an output folder whose names are not UTF-8 (possible on Linux): the run

@@ -20,6 +20,20 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// Copies the folder `from` into `to` (made if absent), recursively.
+pub fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
 /// The arguments of `otoatlas atlas import` for SOFA's chain (`anatomy` from
 /// [`shared_anatomy`]) with the repository's region mapping and landmarks, into `out`.
 pub fn sofa_import_args(anatomy: &std::path::Path, out: &std::path::Path) -> Vec<String> {
