@@ -321,6 +321,41 @@ fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
     // the side comes from the DICOM Laterality
     let json = read_landmarks(&dir.path().join("landmarks.json")).unwrap();
     assert_eq!(json.side, Some(Side::Left));
+    // asked again without --out, the case's picks are kept (it replaced them unasked) ...
+    let picks = std::fs::read(dir.path().join("landmarks.fcsv")).unwrap();
+    let again = b"1 2 3\n4 5 6\n7 8 9\n";
+    let out = crate::common::otoatlas_with_stdin(
+        &["landmarks", dir.path().to_str().unwrap(), "--quiet"],
+        again,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("holds landmarks already, which are replaced only on request"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("landmarks.fcsv")).unwrap(),
+        picks
+    );
+    // ... and replaced where --out names them
+    let fcsv = dir.path().join("landmarks.fcsv");
+    let out = crate::common::otoatlas_with_stdin(
+        &[
+            "landmarks",
+            dir.path().to_str().unwrap(),
+            "--out",
+            fcsv.to_str().unwrap(),
+            "--quiet",
+        ],
+        b"12.5 -30.25 101\nv 8 10 13\n10.75 -26.5 103.5\n",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_ne!(std::fs::read(&fcsv).unwrap(), picks);
 }
 
 /// An endless input (`/dev/zero` given as the landmark file, or piped into the prompt) is

@@ -30,8 +30,11 @@ On a terminal each question offers the landmark proposed from the image (as --au
 Enter accepts it. On a pipe, one answer per line; with --suggest an empty line accepts the
 proposal.
 
+Without --out they are written into the case folder (CASE/landmarks.fcsv and .json), unless
+it has a landmark file already: landmarks are replaced only where --out names them.
+
 Examples:
-  otoatlas landmarks sample_cases/case-001
+  otoatlas landmarks patient-07
   printf '1 2 3\\nv 10 20 30\\n4 5 6\\n' | otoatlas landmarks scan.nii.gz --out picks.fcsv
   otoatlas landmarks sample_cases/case-001 --auto --out proposed.fcsv
 
@@ -45,7 +48,8 @@ pub struct LandmarksArgs {
     /// The case folder (or a bare image).
     pub case: PathBuf,
     /// Where to write: a .fcsv or .json path (the other format is written beside it).
-    /// Default: CASE/landmarks.fcsv and CASE/landmarks.json.
+    /// Default: CASE/landmarks.fcsv and CASE/landmarks.json, refused where the case has a
+    /// landmark file already.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Propose the landmarks from the image instead of asking for them.
@@ -93,6 +97,7 @@ pub fn run(
     let case = Case::open(&args.case)?;
     let (fcsv, json_path) = out_paths(args, &case);
     check_out_file(&fcsv)?;
+    check_default_out_is_free(args, &case, [&fcsv, &mrk_path(&fcsv), &json_path])?;
     let loaded = image::load_reporting(
         &case.image,
         args.series.uid.as_deref(),
@@ -271,6 +276,33 @@ fn propose_and_write(
 }
 
 /// The `.mrk.json` beside a `.fcsv`.
+/// Refuses, before the image is read, to write where landmarks already are when no `--out`
+/// names the place: a case's picks (placed by hand, perhaps over many minutes) are replaced
+/// only on request.
+fn check_default_out_is_free(
+    args: &LandmarksArgs,
+    case: &Case,
+    written: [&Path; 3],
+) -> Result<(), Error> {
+    if args.out.is_some() {
+        return Ok(());
+    }
+    let existing = case.landmarks.clone().or_else(|| {
+        written
+            .into_iter()
+            .find(|p| p.exists())
+            .map(Path::to_path_buf)
+    });
+    match existing {
+        None => Ok(()),
+        Some(file) => Err(Error::Usage(format!(
+            "{} holds landmarks already, which are replaced only on request: give --out {} to replace them, or --out FILE to write elsewhere",
+            file.display(),
+            written[0].display()
+        ))),
+    }
+}
+
 fn mrk_path(fcsv: &Path) -> PathBuf {
     let stem = fcsv
         .file_stem()
