@@ -275,7 +275,6 @@ fn propose_and_write(
     Ok(Report { text, json })
 }
 
-/// The `.mrk.json` beside a `.fcsv`.
 /// Refuses, before the image is read, to write where landmarks already are when no `--out`
 /// names the place: a case's picks (placed by hand, perhaps over many minutes) are replaced
 /// only on request.
@@ -303,6 +302,7 @@ fn check_default_out_is_free(
     }
 }
 
+/// The `.mrk.json` beside a `.fcsv`.
 fn mrk_path(fcsv: &Path) -> PathBuf {
     let stem = fcsv
         .file_stem()

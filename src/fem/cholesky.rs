@@ -100,10 +100,10 @@ struct SingleFactor {
 }
 
 impl SingleFactor {
-    /// Room for a factor of `symbolic`'s pattern.
-    fn new(symbolic: &SymbolicCholesky<usize>, par: Par) -> Self {
+    /// A factor of `symbolic`'s pattern with the values `l_values`, and its buffers.
+    fn new(l_values: Vec<f32>, symbolic: &SymbolicCholesky<usize>, par: Par) -> Self {
         SingleFactor {
-            l_values: vec![0.0; symbolic.len_val()],
+            l_values,
             matrix: Vec::new(),
             rhs: Vec::new(),
             scratch: scratch::<f32>(symbolic, par),
@@ -151,10 +151,10 @@ impl Clone for SparseCholesky {
             symbolic: Arc::clone(&self.symbolic),
             l_values: self.l_values.clone(),
             scratch: scratch::<f64>(&self.symbolic, self.par),
-            single: self.single.as_ref().map(|single| SingleFactor {
-                l_values: single.l_values.clone(),
-                ..SingleFactor::new(&self.symbolic, self.par)
-            }),
+            single: self
+                .single
+                .as_ref()
+                .map(|single| SingleFactor::new(single.l_values.clone(), &self.symbolic, self.par)),
             par: self.par,
             factorised: self.factorised,
         }
@@ -275,7 +275,7 @@ impl SparseCholesky {
         let (symbolic, par) = (&self.symbolic, self.par);
         let single = self
             .single
-            .get_or_insert_with(|| SingleFactor::new(symbolic, par));
+            .get_or_insert_with(|| SingleFactor::new(vec![0.0; symbolic.len_val()], symbolic, par));
         single.matrix.clear();
         single.matrix.extend(matrix.val().iter().map(|&v| v as f32));
         pivot_error(symbolic.factorize_numeric_llt(
