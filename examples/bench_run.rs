@@ -33,7 +33,6 @@ fn bench() -> Result<(), Box<dyn std::error::Error>> {
             out: out.path().join(format!("case{k}")),
             from: Stage::Ingest,
             landmarks: None,
-            series: None,
             atlas: None,
             side: None,
             keep_phi: false,

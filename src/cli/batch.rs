@@ -23,8 +23,9 @@ use crate::progress::Reporter;
 #[derive(Debug, Args)]
 #[command(
     after_help = "COHORT is a folder of case folders or a manifest (.toml with [[case]] \
-tables, or .csv with the columns id,image,landmarks[,segmentation]; paths relative to the \
-manifest).
+tables, or .csv with the columns id,image,landmarks[,segmentation][,series]; paths relative \
+to the manifest; series, as run --series takes it, picks one of several series in an image \
+folder).
 
 Outputs under OUT: cases/ID/ (what `run` writes, plus status.json), cohort.json, the cohort \
 report cohort.html and cohort.csv. Exit code 1 when any case failed.

@@ -76,13 +76,15 @@ pub fn run(
     progress: &dyn Reporter,
 ) -> Result<Report, Error> {
     let config = Config::load(config)?;
-    let case = Case::open(&args.case)?;
+    let case = Case {
+        series: args.series.uid.clone(),
+        ..Case::open(&args.case)?
+    };
     check_out_dir(&args.out)?;
     let opts = RunOptions {
         out: args.out.clone(),
         from: args.from,
         landmarks: args.landmarks.clone(),
-        series: args.series.uid.clone(),
         atlas: args.atlas.clone(),
         side: args.side,
         keep_phi: args.keep_phi,

@@ -54,7 +54,7 @@ pub enum ImageError {
         max_mib: f64,
     },
     #[error(
-        "{path}: the folder holds {count} image series; choose one with --series (a UID or a hash prefix):\n{listing}"
+        "{path}: the folder holds {count} image series; choose one with --series (in a cohort manifest: series), a UID or a hash prefix:\n{listing}"
     )]
     SeveralSeries {
         path: PathBuf,

@@ -21,6 +21,7 @@ use crate::Error;
 use crate::config::Config;
 use crate::export::package::PACKAGE_DIR;
 use crate::export::{atlas_sha256, verify_package};
+use crate::image::dicom::series_selects;
 use crate::io_util::write_json_file;
 use crate::mechanics::Condition;
 use crate::progress::Reporter;
@@ -125,7 +126,6 @@ fn run_one(
         out,
         from: Stage::Ingest,
         landmarks: None,
-        series: None,
         atlas: opts.atlas.clone(),
         side: None,
         keep_phi: opts.keep_phi,
@@ -154,9 +154,9 @@ pub fn read_status(out: &Path, id: &str) -> Option<CaseStatus> {
 }
 
 /// Whether the case's outputs in `out` are complete and current: its package verifies (every
-/// file hashed, meshes and scene consistent) and its manifest names these inputs, this
-/// configuration and this atlas under this condition (by SHA-256), and holds no patient
-/// identity unless asked to.
+/// file hashed, meshes and scene consistent) and its manifest names these inputs (the series
+/// asked for, where the case names one), this configuration and this atlas under this
+/// condition (by SHA-256), and holds no patient identity unless asked to.
 /// A package is written last and atomically, so one that verifies means the run finished.
 fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) -> bool {
     let Ok(report) = verify_package(&out.join(PACKAGE_DIR)) else {
@@ -176,7 +176,15 @@ fn is_complete(case: &Case, out: &Path, opts: &BatchOptions, config: &Config) ->
             .and_then(|atlas| atlas_sha256(&atlas).ok())
             .is_some_and(|digest| digest == manifest.atlas.sha256)
     };
+    // the inputs' digest covers the image folder's files, whichever series was read
+    let same_series = case.series.as_deref().is_none_or(|wanted| {
+        manifest
+            .series_uid_sha256
+            .as_deref()
+            .is_some_and(|read| series_selects(wanted, read))
+    });
     same_inputs
+        && same_series
         && manifest.config_sha256 == config.sha256()
         && (opts.keep_phi || manifest.patient.is_none())
         && same_atlas()

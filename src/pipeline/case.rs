@@ -42,6 +42,10 @@ pub struct Case {
     pub landmarks: Option<PathBuf>,
     /// The manual segmentation folder, if the case has one.
     pub segmentation: Option<PathBuf>,
+    /// The DICOM series to read where the image folder holds several: its SeriesInstanceUID,
+    /// or a prefix of at least 6 hex digits of its SHA-256, as `inspect` lists them (`run
+    /// --series`, a cohort manifest's `series`).
+    pub series: Option<String>,
 }
 
 /// The path given as a case does not exist.
@@ -75,6 +79,7 @@ impl Case {
                 image: path.to_path_buf(),
                 landmarks: None,
                 segmentation: None,
+                series: None,
             });
         }
         let image = IMAGE_NAMES
@@ -93,6 +98,7 @@ impl Case {
             image,
             landmarks,
             segmentation,
+            series: None,
         })
     }
 }

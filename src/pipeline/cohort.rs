@@ -1,6 +1,6 @@
 //! A cohort: the cases of a batch, read from a folder of case folders or from a manifest
-//! (TOML or CSV: case id, image, optional landmarks, optional segmentation; a case without
-//! landmarks has them proposed from its image), and its deterministic
+//! (TOML or CSV: case id, image, optional landmarks, optional segmentation, optional DICOM
+//! series; a case without landmarks has them proposed from its image), and its deterministic
 //! slicing into shards for job arrays.
 //!
 //! Manifest paths are relative to the manifest's folder unless absolute.
@@ -11,12 +11,16 @@
 //! image = "scans/p01/dicom"
 //! landmarks = "scans/p01/picks.fcsv"
 //! segmentation = "scans/p01/seg"   # optional
+//! series = "3f2a9c01"               # optional: which series of a folder holding several
 //! ```
 //!
 //! ```text
-//! id,image,landmarks,segmentation
-//! p01,scans/p01/dicom,scans/p01/picks.fcsv,scans/p01/seg
+//! id,image,landmarks,segmentation,series
+//! p01,scans/p01/dicom,scans/p01/picks.fcsv,scans/p01/seg,3f2a9c01
 //! ```
+//!
+//! `series` is what `run --series` takes (a SeriesInstanceUID or a prefix of at least 6 hex
+//! digits of its SHA-256, as `inspect` lists them); a folder of case folders cannot name one.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -59,6 +63,9 @@ struct ManifestCase {
     landmarks: Option<PathBuf>,
     #[serde(default)]
     segmentation: Option<PathBuf>,
+    /// Empty or absent: the image must hold one series.
+    #[serde(default)]
+    series: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -106,7 +113,7 @@ pub fn read_cohort(path: &Path) -> Result<Cohort, CohortError> {
                 .collect::<Result<Vec<ManifestCase>, _>>()
                 .map_err(|e| {
                     read_err(format!(
-                        "not a cohort manifest (columns id,image,landmarks[,segmentation]): {e}"
+                        "not a cohort manifest (columns id,image,landmarks[,segmentation][,series]): {e}"
                     ))
                 })?,
             _ => {
@@ -240,6 +247,7 @@ fn manifest_cases(manifest: &Path, rows: Vec<ManifestCase>) -> Result<Vec<Case>,
                 image,
                 landmarks,
                 segmentation,
+                series: row.series.filter(|s| !s.trim().is_empty()),
             })
         })
         .collect()
@@ -375,6 +383,39 @@ mod tests {
             read_cohort(&toml_path),
             Err(CohortError::DuplicateId { .. })
         ));
+    }
+
+    #[test]
+    fn a_manifest_names_the_series_of_a_folder_of_several() {
+        let dir = tempfile::tempdir().unwrap();
+        case_folder(dir.path(), "a");
+        let csv = dir.path().join("cohort.csv");
+        std::fs::write(
+            &csv,
+            "id,image,landmarks,series\np1,a/dicom,a/landmarks.json,3f2a9c01\np2,a/dicom,,\n",
+        )
+        .unwrap();
+        let series: Vec<Option<String>> = read_cohort(&csv)
+            .unwrap()
+            .cases
+            .into_iter()
+            .map(|c| c.series)
+            .collect();
+        assert_eq!(series, [Some("3f2a9c01".to_string()), None]);
+        let toml_path = dir.path().join("cohort.toml");
+        std::fs::write(
+            &toml_path,
+            "[[case]]\nid = \"p1\"\nimage = \"a/dicom\"\nseries = \"1.2.840.99.1\"\n\
+             [[case]]\nid = \"p2\"\nimage = \"a/dicom\"\nseries = \"\"\n",
+        )
+        .unwrap();
+        let series: Vec<Option<String>> = read_cohort(&toml_path)
+            .unwrap()
+            .cases
+            .into_iter()
+            .map(|c| c.series)
+            .collect();
+        assert_eq!(series, [Some("1.2.840.99.1".to_string()), None]);
     }
 
     #[test]

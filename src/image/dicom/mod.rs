@@ -39,6 +39,15 @@ pub fn transfer_syntax_name(uid: &str) -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
+/// Whether `wanted` (a SeriesInstanceUID, or a prefix of at least 6 hex digits of the SHA-256
+/// of one, as [`read_dicom`]'s listing gives them) names the series whose UID's SHA-256 is
+/// `uid_sha256` (`ImageInfo::series_uid_sha256`).
+pub fn series_selects(wanted: &str, uid_sha256: &str) -> bool {
+    let wanted_lc = wanted.to_ascii_lowercase();
+    sha256_hex(wanted.as_bytes()) == uid_sha256
+        || (wanted_lc.len() >= 6 && uid_sha256.starts_with(&wanted_lc))
+}
+
 /// Reads the image series at `path` (a folder or a single file). With several image series in
 /// a folder, `series` picks one by SeriesInstanceUID or by a prefix of its SHA-256.
 pub fn read_dicom(
@@ -88,11 +97,9 @@ pub fn read_dicom(
             });
         }
         (_, Some(wanted)) => {
-            let wanted_lc = wanted.to_ascii_lowercase();
-            let hit = by_series.keys().find(|uid| {
-                uid.as_str() == wanted
-                    || (wanted_lc.len() >= 6 && sha256_hex(uid.as_bytes()).starts_with(&wanted_lc))
-            });
+            let hit = by_series
+                .keys()
+                .find(|uid| series_selects(wanted, &sha256_hex(uid.as_bytes())));
             match hit.cloned() {
                 Some(uid) => {
                     let files = by_series.remove(&uid).unwrap_or_default();
@@ -185,4 +192,21 @@ fn series_listing(by_series: &BTreeMap<String, Vec<ImageFile>>) -> String {
         })
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_series_is_named_by_its_uid_or_a_prefix_of_its_hash() {
+        let uid = "1.2.826.0.1.3680043.10.543.7";
+        let hash = sha256_hex(uid.as_bytes());
+        assert!(series_selects(uid, &hash));
+        assert!(series_selects(&hash, &hash));
+        assert!(series_selects(&hash[..6].to_ascii_uppercase(), &hash));
+        assert!(!series_selects(&hash[..5], &hash), "under 6 hex digits");
+        assert!(!series_selects("1.2.826.0.1.3680043.10.543.8", &hash));
+        assert!(!series_selects(&sha256_hex(b"another")[..8], &hash));
+    }
 }

@@ -52,9 +52,6 @@ pub struct RunOptions {
     pub from: Stage,
     /// A landmark file that replaces the case's.
     pub landmarks: Option<PathBuf>,
-    /// The DICOM series to read where the case's folder holds several (its SeriesInstanceUID,
-    /// or a prefix of at least 6 hex digits of its SHA-256, as `inspect` lists them).
-    pub series: Option<String>,
     /// An atlas folder instead of the embedded default.
     pub atlas: Option<PathBuf>,
     /// The side of the ear, overriding the landmark file and the DICOM.
@@ -369,7 +366,7 @@ fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
     progress.log(&format!("{}: ingest {}", case.id, case.image.display()));
     let loaded = image::load_reporting(
         &case.image,
-        opts.series.as_deref(),
+        case.series.as_deref(),
         &config.ingest,
         progress,
     )?;
