@@ -356,6 +356,41 @@ fn landmarks_command_reads_a_pipe_and_writes_both_formats() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert_ne!(std::fs::read(&fcsv).unwrap(), picks);
+    // a file --out does not name but would write beside it is kept when it stands alone ...
+    let lone = dir.path().join("other.json");
+    std::fs::write(&lone, b"{\"not\": \"ours\"}").unwrap();
+    let to = |out: &std::path::Path| {
+        crate::common::otoatlas_with_stdin(
+            &[
+                "landmarks",
+                dir.path().to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--quiet",
+            ],
+            b"12.5 -30.25 101\nv 8 10 13\n10.75 -26.5 103.25\n",
+        )
+    };
+    let out = to(&dir.path().join("other.fcsv"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("other.json, which exists without"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("other.fcsv").exists());
+    assert_eq!(std::fs::read(&lone).unwrap(), b"{\"not\": \"ours\"}");
+    // ... and replaced where --out names it, its companion written beside it
+    let out = to(&lone);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for name in ["other.json", "other.fcsv"] {
+        let read = read_landmarks(&dir.path().join(name)).unwrap();
+        assert_points(&read.landmarks, &expected());
+    }
 }
 
 /// An endless input (`/dev/zero` given as the landmark file, or piped into the prompt) is

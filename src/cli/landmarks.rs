@@ -31,7 +31,9 @@ Enter accepts it. On a pipe, one answer per line; with --suggest an empty line a
 proposal.
 
 Without --out they are written into the case folder (CASE/landmarks.fcsv and .json), unless
-it has a landmark file already: landmarks are replaced only where --out names them.
+it has a landmark file already: landmarks are replaced only where --out names them. The files
+written beside --out FILE (the other format, the .mrk.json) replace files of those names only
+when FILE itself exists: a set written together before.
 
 Examples:
   otoatlas landmarks patient-07
@@ -47,7 +49,8 @@ fails with exit code 2."
 pub struct LandmarksArgs {
     /// The case folder (or a bare image).
     pub case: PathBuf,
-    /// Where to write: a .fcsv or .json path (the other format is written beside it).
+    /// Where to write: a .fcsv or .json path. The other format is written beside it (and a
+    /// .mrk.json with --auto), replacing a file there only if FILE exists too.
     /// Default: CASE/landmarks.fcsv and CASE/landmarks.json, refused where the case has a
     /// landmark file already.
     #[arg(long, value_name = "FILE")]
@@ -98,6 +101,7 @@ pub fn run(
     let (fcsv, json_path) = out_paths(args, &case);
     check_out_file(&fcsv)?;
     check_default_out_is_free(args, &case, [&fcsv, &mrk_path(&fcsv), &json_path])?;
+    check_companions_are_replaceable(args, &fcsv, &json_path)?;
     let loaded = image::load_reporting(
         &case.image,
         args.series.uid.as_deref(),
@@ -300,6 +304,39 @@ fn check_default_out_is_free(
             written[0].display()
         ))),
     }
+}
+
+/// Refuses, before the image is read, to replace a file that `--out` does not name but that is
+/// written beside it (the other format; the `.mrk.json` with `--auto`), unless the named file
+/// is there too: then they are a set written together (or the named one edited since), and
+/// the request to replace it covers them. A lone `picks.json` of another origin is kept.
+fn check_companions_are_replaceable(
+    args: &LandmarksArgs,
+    fcsv: &Path,
+    json_path: &Path,
+) -> Result<(), Error> {
+    let Some(named) = &args.out else {
+        return Ok(());
+    };
+    if named.exists() {
+        return Ok(());
+    }
+    let mrk = mrk_path(fcsv);
+    let companions = [fcsv, json_path]
+        .into_iter()
+        .filter(|p| *p != named.as_path())
+        .chain(args.auto.then_some(mrk.as_path()));
+    for companion in companions {
+        if companion.exists() {
+            return Err(Error::Usage(format!(
+                "--out {} would also write {}, which exists without {} beside it and is replaced only on request: remove it, or give --out FILE with another name",
+                named.display(),
+                companion.display(),
+                named.display(),
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The `.mrk.json` beside a `.fcsv`.
