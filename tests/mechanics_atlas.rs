@@ -192,6 +192,58 @@ fn a_static_branch_that_cannot_carry_its_load_stops_short_and_fails_its_gates() 
     assert!(!verdict.passed);
 }
 
+/// An increment that a single-precision tangent cannot bring to equilibrium within the
+/// iteration limit is solved again in double precision (`UdspOptions::tangent_precision`),
+/// and the curve says from where: the limit is set one below what the single-precision
+/// tangent needs at ±1 kPa on the atlas (measured first, so that the test reaches the retry on
+/// any machine), and the curve so solved is the double-precision one.
+#[test]
+fn an_increment_single_precision_cannot_solve_is_solved_in_double() {
+    let atlas = default_atlas().unwrap();
+    let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
+    let curve = |precision, max_iterations| {
+        let options = UdspOptions {
+            pressures_pa: vec![-1000.0, 1000.0],
+            tolerance_mm: 1e-7,
+            residual_tolerance: 1e-6,
+            max_iterations,
+            ossicles: Ossicles::Rigid,
+            tangent_precision: precision,
+            ..UdspOptions::default()
+        };
+        static_pressure_curve(&system, &options, &otoatlas::progress::Silent).unwrap()
+    };
+    let double = curve(FactorPrecision::Double, 200);
+    let single = curve(FactorPrecision::Single, 200);
+    assert!(double.failure.is_none() && single.failure.is_none());
+    assert!(single.double_precision_from_pa.is_empty());
+    let needed = single
+        .points
+        .iter()
+        .map(|p| p.iterations)
+        .filter(|&n| n > 0);
+    let limit = needed.min().unwrap() - 1;
+    let retried = curve(FactorPrecision::Single, limit);
+    println!(
+        "single precision needs {:?} iterations; at most {limit}: went on in double from {:?} Pa",
+        single
+            .points
+            .iter()
+            .map(|p| p.iterations)
+            .collect::<Vec<_>>(),
+        retried.double_precision_from_pa
+    );
+    assert!(retried.failure.is_none(), "{:?}", retried.failure);
+    assert_eq!(retried.double_precision_from_pa, [-1000.0, 1000.0]);
+    for p in [-1000.0, 1000.0] {
+        let (got, want) = (retried.at(p).unwrap(), double.at(p).unwrap());
+        assert!(
+            (got - want).abs() < 1e-6,
+            "{p} Pa: {got} mm, double {want} mm"
+        );
+    }
+}
+
 /// The umbo's static displacement (mm, medial) at pressure `p`, solved to `tolerance_mm`.
 fn static_umbo(system: &MechanicalSystem, p: f64, tolerance_mm: f64) -> f64 {
     let curve = static_pressure_curve(

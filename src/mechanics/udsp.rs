@@ -120,6 +120,11 @@ pub struct StaticCurve {
     /// Where and why loading stopped short (an increment without equilibrium), if it did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
+    /// The pressures \[Pa\] at which a branch solved with a single-precision tangent
+    /// (`UdspOptions::tangent_precision`) met an increment it could not bring to equilibrium
+    /// and went on in double precision from there; empty where none did.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub double_precision_from_pa: Vec<f64>,
 }
 
 impl StaticCurve {
@@ -220,22 +225,27 @@ impl<'s> StaticCurveSolver<'s> {
             || solve_branch(system, negative, &branches[0], options, task.as_ref()),
             || solve_branch(system, positive, &branches[1], options, task.as_ref()),
         );
-        let (mut points, neg_failure) = neg?;
-        let (pos_points, pos_failure) = pos?;
+        let (neg, pos) = (neg?, pos?);
+        let mut points = neg.points;
         points.push(UdspPoint {
             pressure_pa: 0.0,
             umbo_mm: 0.0,
             iterations: 0,
             relative_residual: 0.0,
         });
-        points.extend(pos_points);
+        points.extend(pos.points);
         points.sort_by(|a, b| a.pressure_pa.total_cmp(&b.pressure_pa));
         task.finish(&format!("{} static pressures solved", points.len() - 1));
-        let failures: Vec<String> = neg_failure.into_iter().chain(pos_failure).collect();
+        let failures: Vec<String> = neg.failure.into_iter().chain(pos.failure).collect();
         Ok(StaticCurve {
             ossicles: options.ossicles,
             points,
             failure: (!failures.is_empty()).then(|| failures.join("; ")),
+            double_precision_from_pa: neg
+                .double_from_pa
+                .into_iter()
+                .chain(pos.double_from_pa)
+                .collect(),
         })
     }
 }
@@ -295,15 +305,25 @@ fn static_options(options: &UdspOptions) -> StaticOptions {
     }
 }
 
-/// Loads from rest through `pressures` (one sign, increasing magnitude): the points reached
-/// (each one reported to `task`), and why the branch stopped short if it did.
+/// One branch of the curve, loaded from rest.
+struct Branch {
+    /// The points reached.
+    points: Vec<UdspPoint>,
+    /// Why the branch stopped short, if it did.
+    failure: Option<String>,
+    /// The pressure of the increment from which it went on in double precision, if it did.
+    double_from_pa: Option<f64>,
+}
+
+/// Loads from rest through `pressures` (one sign, increasing magnitude), each point reached
+/// reported to `task`.
 fn solve_branch(
     system: &MechanicalSystem,
     mut solver: StaticSolver<'_>,
     pressures: &[f64],
     options: &UdspOptions,
     task: &dyn Task,
-) -> Result<(Vec<UdspPoint>, Option<String>), MechanicsError> {
+) -> Result<Branch, MechanicsError> {
     let rest = system.model.rest_positions();
     let mut x = rest.to_vec();
     let loads = loads(system);
@@ -313,6 +333,7 @@ fn solve_branch(
     let mut current = 0.0f64;
     let mut step = options.max_step_pa;
     let mut before = x.clone();
+    let mut double_from_pa = None;
     for &target in pressures {
         let mut iterations = 0;
         let mut relative_residual = 0.0;
@@ -338,12 +359,19 @@ fn solve_branch(
                 Err(_) if static_options.tangent_precision == FactorPrecision::Single => {
                     x.copy_from_slice(&before);
                     static_options.tangent_precision = FactorPrecision::Double;
+                    double_from_pa = Some(p);
                 }
                 Err(_) if step / 2.0 >= options.min_step_pa => {
                     x.copy_from_slice(&before);
                     step /= 2.0;
                 }
-                Err(e) => return Ok((out, Some(format!("static pressure {p:.0} Pa: {e}")))),
+                Err(e) => {
+                    return Ok(Branch {
+                        points: out,
+                        failure: Some(format!("static pressure {p:.0} Pa: {e}")),
+                        double_from_pa,
+                    });
+                }
             }
         }
         out.push(UdspPoint {
@@ -354,5 +382,9 @@ fn solve_branch(
         });
         task.inc(1);
     }
-    Ok((out, None))
+    Ok(Branch {
+        points: out,
+        failure: None,
+        double_from_pa,
+    })
 }
