@@ -61,6 +61,10 @@ pub enum ImageError {
         count: usize,
         listing: String,
     },
+    #[error(
+        "{path}: a NIfTI file holds one volume; --series {wanted:?} (or a cohort manifest's series) picks one of the series of a DICOM folder"
+    )]
+    SeriesOfNifti { path: PathBuf, wanted: String },
     #[error("{path}: no image series matches --series {wanted:?}; the series are:\n{listing}")]
     SeriesNotFound {
         path: PathBuf,

@@ -148,8 +148,8 @@ impl ImageRecord {
 }
 
 /// Reads `path`: a NIfTI file (`.nii`, `.nii.gz`), a DICOM file (single- or multi-frame), or a
-/// folder searched recursively for a DICOM series (`series` chooses among several). Reports
-/// nothing; see [`load_reporting`].
+/// folder searched recursively for a DICOM series (`series` chooses among several; given with
+/// a NIfTI file, it is refused). Reports nothing; see [`load_reporting`].
 pub fn load(
     path: &Path,
     series: Option<&str>,
@@ -171,6 +171,12 @@ pub fn load_reporting(
         });
     }
     if path.is_file() && nifti::is_nifti_path(path) {
+        if let Some(wanted) = series {
+            return Err(ImageError::SeriesOfNifti {
+                path: path.to_path_buf(),
+                wanted: wanted.to_string(),
+            });
+        }
         return nifti::read_nifti(path, cfg);
     }
     dicom::read_dicom(path, series, cfg, progress)
@@ -179,6 +185,32 @@ pub fn load_reporting(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A series asked of a NIfTI file is refused before the file is read, not ignored.
+    #[test]
+    fn a_series_asked_of_a_nifti_file_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scan.nii.gz");
+        std::fs::write(&path, b"not read").unwrap();
+        let e = load(
+            &path,
+            Some("3f2a9c01"),
+            &crate::config::Config::default_config().unwrap().ingest,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&e, ImageError::SeriesOfNifti { wanted, .. } if wanted == "3f2a9c01"),
+            "{e}"
+        );
+        // without it the file is read (and found not to be a NIfTI image)
+        let e = load(
+            &path,
+            None,
+            &crate::config::Config::default_config().unwrap().ingest,
+        )
+        .unwrap_err();
+        assert!(!matches!(e, ImageError::SeriesOfNifti { .. }), "{e}");
+    }
 
     /// Every recorded field but the path tells two images apart, by name.
     #[test]
