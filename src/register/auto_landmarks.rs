@@ -10,7 +10,9 @@ use serde::{Deserialize, Serialize};
 
 use super::DeformSettings;
 use super::atlas_fit::{deform_atlas, place};
-use super::chain_search::{ChainSearch, SearchConfig, SearchError, SideAtlas, search_chain};
+use super::chain_search::{
+    ChainSearch, SCALE_RANGE, SearchConfig, SearchError, SideAtlas, search_chain,
+};
 use super::deform::{DeformError, probe_surface};
 use super::landmarks::LandmarkWarning;
 use super::placement::{bone_nodes, placement_from_registration};
@@ -182,7 +184,8 @@ pub fn propose_landmarks(
     let bones = bone_nodes(atlas);
     for _ in 0..input.search.rescale_passes {
         // a placement outside the sizes people's ossicles have ends the passes
-        let Some(placement) = placement_from_registration(atlas, &bones, &nodes) else {
+        let Some(placement) = placement_from_registration(atlas, &bones, &nodes, SCALE_RANGE)
+        else {
             break;
         };
         progress.log(&format!(

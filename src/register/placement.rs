@@ -38,18 +38,31 @@ pub(crate) fn bone_nodes(atlas: &Atlas) -> Vec<usize> {
 
 /// The similarity that best maps the atlas's `bones` nodes at rest onto `registered`: where
 /// to place the atlas for the next registration. `None` for a degenerate fit, or a scale
-/// outside the sizes people's ossicles have relative to the atlas (`SCALE_RANGE`): a chain
-/// registered badly (the wrong side's forced on the image, say) shrinks pass by pass.
+/// outside `scales`: a chain registered badly (the wrong side's forced on the image, say)
+/// shrinks pass by pass.
 pub(crate) fn placement_from_registration(
     atlas: &Atlas,
     bones: &[usize],
     registered: &[Point3<f64>],
+    scales: (f64, f64),
 ) -> Option<SimilarityTransform> {
     let rest: Vec<Point3<f64>> = bones.iter().map(|&i| atlas.nodes()[i]).collect();
     let moved: Vec<Point3<f64>> = bones.iter().map(|&i| registered[i]).collect();
     fit_similarity(&rest, &moved, true)
         .map(|fit| fit.transform)
-        .filter(|p| (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&p.scale))
+        .filter(|p| (scales.0..=scales.1).contains(&p.scale))
+}
+
+/// The scales a placement pass may give the atlas placed at `placed` by its landmarks: the
+/// landmark fit's scale times `SCALE_RANGE`. The landmark fit's own size was judged with the
+/// landmarks (a third beyond the atlas's is accepted there), so the pass bounds only how far
+/// a registration may take it; bounded by the atlas's own size instead (until 2026-11-29),
+/// every pass of a chain over 1.25 times the atlas was refused.
+fn pass_scales(atlas: &Atlas, bones: &[usize], placed: &[Point3<f64>]) -> (f64, f64) {
+    placement_from_registration(atlas, bones, placed, (0.0, f64::INFINITY))
+        .map_or(SCALE_RANGE, |fit| {
+            (SCALE_RANGE.0 * fit.scale, SCALE_RANGE.1 * fit.scale)
+        })
 }
 
 /// `deform_atlas` from `placed`, after `settings.deform.placement_passes` registrations that
@@ -88,6 +101,7 @@ pub fn deform_placed_again(
         steps: Steps::Chord,
     };
     let bones = bone_nodes(atlas);
+    let allowed = pass_scales(atlas, &bones, placed);
     for _ in 0..passes {
         let registered = match deform_atlas(atlas, &start, placed, sampler, step, coarse, progress)
         {
@@ -100,7 +114,7 @@ pub fn deform_placed_again(
             }
         };
         let Some(placement) =
-            placement_from_registration(atlas, &bones, &registered.deform.positions)
+            placement_from_registration(atlas, &bones, &registered.deform.positions, allowed)
         else {
             progress.log(
                 "the registered ossicles' similarity is degenerate or out of the ossicles' sizes; registering from the placement before",
@@ -157,7 +171,7 @@ mod tests {
         );
         // only the ossicles count: the eardrum's nodes may be anywhere
         let moved = moved_atlas(&atlas, 1.1);
-        let placement = placement_from_registration(&atlas, &bones, &moved).unwrap();
+        let placement = placement_from_registration(&atlas, &bones, &moved, SCALE_RANGE).unwrap();
         assert!((placement.scale - 1.1).abs() < 1e-9, "{placement:?}");
         for &i in &bones {
             assert!((placement.apply(&atlas.nodes()[i]) - moved[i]).norm() < 1e-9);
@@ -170,9 +184,26 @@ mod tests {
         let bones = bone_nodes(&atlas);
         for scale in [0.7, 1.3] {
             let moved = moved_atlas(&atlas, scale);
-            assert!(placement_from_registration(&atlas, &bones, &moved).is_none());
+            assert!(placement_from_registration(&atlas, &bones, &moved, SCALE_RANGE).is_none());
         }
         let collapsed = vec![Point3::origin(); atlas.nodes().len()];
-        assert!(placement_from_registration(&atlas, &bones, &collapsed).is_none());
+        assert!(placement_from_registration(&atlas, &bones, &collapsed, SCALE_RANGE).is_none());
+    }
+
+    /// A chain that the landmarks place at 1.3 times the atlas (the CT chain, inflated by its
+    /// partial volume, and 10 % larger) may be placed again at that size, and down to 0.8 and up
+    /// to 1.25 of it; not beyond.
+    #[test]
+    fn a_pass_bounds_the_size_relative_to_the_landmark_fit() {
+        let atlas = crate::atlas::load_atlas(None, None).unwrap();
+        let bones = bone_nodes(&atlas);
+        let placed = moved_atlas(&atlas, 1.3);
+        let (low, high) = pass_scales(&atlas, &bones, &placed);
+        assert!((low - 0.8 * 1.3).abs() < 1e-9 && (high - 1.25 * 1.3).abs() < 1e-9);
+        let again = |scale: f64| {
+            placement_from_registration(&atlas, &bones, &moved_atlas(&atlas, scale), (low, high))
+        };
+        assert!(again(1.3).is_some() && again(1.5).is_some() && again(1.1).is_some());
+        assert!(again(1.0).is_none() && again(1.7).is_none());
     }
 }
