@@ -12,11 +12,12 @@ use serde::{Deserialize, Serialize};
 
 use super::DeformSettings;
 use super::articulate::{Articulation, articulate, articulated_shape};
-use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, deform};
+use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, ProbeConfig, deform};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::probes::probe_triangles;
 use super::refine::{Refinement, refine};
 use super::rigid::{RigidFit, SimilarityTransform, fit_similarity};
+use super::support::{EdgeSupport, edge_support};
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
@@ -55,6 +56,8 @@ pub struct Registered {
     /// The surface level after the FEM levels (absent when `[refine]` is off).
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
+    /// How much of each registered ossicle's surface lies on a bone edge (`support`).
+    pub edge_support: Vec<EdgeSupport>,
     /// The scale of each placement of the atlas made from a registration before this one
     /// (`placement::deform_placed_again`), in order.
     pub placed_again: Vec<f64>,
@@ -75,6 +78,10 @@ pub struct DeformRecord {
     #[serde(default)]
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
+    /// How much of each registered ossicle's surface lies on a bone edge (`support`; empty in
+    /// a record written before it was kept).
+    #[serde(default)]
+    pub edge_support: Vec<EdgeSupport>,
     /// The scale of each placement of the atlas made from a registration before this one
     /// (`[deform] placement_passes`), in order.
     #[serde(default)]
@@ -93,6 +100,7 @@ impl Registered {
             history: self.deform.history.clone(),
             refinement: self.refinement.clone(),
             eardrum: self.eardrum,
+            edge_support: self.edge_support.clone(),
             placed_again: self.placed_again.clone(),
             probe_step_mm: step,
         }
@@ -248,11 +256,17 @@ pub fn deform_atlas(
             volume_ratio: flat.volume_ratio,
         });
     }
+    let surface_probe = ProbeConfig {
+        search_range_mm: refine_cfg.search_range_mm,
+        ..cfg.probe.clone()
+    };
+    let edge_support = edge_support(atlas, &result.positions, sampler, step, &surface_probe);
     Ok(Registered {
         articulation,
         deform: result,
         refinement,
         eardrum,
+        edge_support,
         placed_again: Vec::new(),
         seconds,
     })

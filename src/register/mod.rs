@@ -13,6 +13,7 @@ pub mod probes;
 pub mod refine;
 pub mod rigid;
 pub mod stapes_turn;
+pub mod support;
 
 pub use crate::ear::Side;
 pub use landmarks::{LandmarkName, Landmarks};

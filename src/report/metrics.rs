@@ -17,6 +17,7 @@ use crate::register::deform::{DeformStatus, IterationStats};
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::refine::Refinement;
 use crate::register::rigid::{RigidFit, SimilarityTransform};
+use crate::register::support::EdgeSupport;
 
 /// Target MASD per ossicle \[mm\], about one CBCT voxel (docs/metrics.md).
 pub const MASD_TARGET_MM: f64 = 0.2;
@@ -177,6 +178,9 @@ pub struct DeformSummary {
     /// The surface level after the FEM levels (absent when it was off, or in records made
     /// before it existed).
     pub refinement: Option<Refinement>,
+    /// How much of each registered ossicle's surface lies on a bone edge (empty in records
+    /// made before it was kept).
+    pub edge_support: Vec<EdgeSupport>,
 }
 
 impl DeformSummary {
@@ -197,6 +201,7 @@ impl DeformSummary {
             mean_offset_mm,
             history: record.history.clone(),
             refinement: record.refinement.clone(),
+            edge_support: record.edge_support.clone(),
         }
     }
 }

@@ -39,6 +39,7 @@ use crate::register::deform::{DeformStatus, Steps};
 use crate::register::landmarks::{LandmarkWarning, check_against_registration};
 use crate::register::placement::deform_placed_again;
 use crate::register::rigid::{RigidFit, RigidRecord};
+use crate::register::support::check_edge_support;
 use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
 };
@@ -240,6 +241,11 @@ pub fn run_case(
             progress.log(&format!("{}: landmark warning: {warning}", case.id));
         }
         placed.warnings.extend(far);
+    }
+    // the image's word on the registered stapes's pose
+    if let Some(weak) = check_edge_support(&deformed.record.edge_support) {
+        progress.log(&format!("{}: registration warning: {weak}", case.id));
+        placed.warnings.push(weak);
     }
     let scored = score_case(
         cx,

@@ -243,6 +243,17 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
                 None => format!("{}, {} iterations", deform.status, deform.history.len()),
             },
         ),
+        (
+            "surface on a bone edge",
+            match deform.edge_support.as_slice() {
+                [] => "not recorded".into(),
+                supports => supports
+                    .iter()
+                    .map(|s| format!("{} {:.0} %", s.part.name(), 100.0 * s.share))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            },
+        ),
     ];
     page.heading("Case summary").table(
         &["item", "value"],

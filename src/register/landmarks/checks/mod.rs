@@ -206,6 +206,14 @@ pub enum LandmarkWarning {
         distance_mm: f64,
         limit_mm: f64,
     },
+    /// Little of a registered ossicle's surface lies on a bone edge (`register::support`):
+    /// its pose, which the landmarks start (the stapes's about the ISJ pick), may be wrong.
+    WeakEdgeSupport {
+        ossicle: String,
+        /// The share of its surface on an edge, and the share below which this is said.
+        share: f64,
+        limit: f64,
+    },
 }
 
 fn band_text([lo, hi]: [f64; 2]) -> String {
@@ -337,6 +345,19 @@ impl std::fmt::Display for LandmarkWarning {
                 "the registered atlas puts the {landmark} {distance_mm:.2} mm from its pick \
                  (more than {limit_mm:.1} mm): the image does not agree with the pick; check it \
                  (the crosses on the overlays), or compare with `otoatlas landmarks --auto`"
+            ),
+            LandmarkWarning::WeakEdgeSupport {
+                ossicle,
+                share,
+                limit,
+            } => write!(
+                f,
+                "only {:.0} % of the registered {ossicle}'s surface lies on a bone edge (below \
+                 {:.0} %): its pose may be wrong (on test phantoms such a stapes lay 0.4-0.8 mm \
+                 off, turned about its head); check it on the overlays, and the \
+                 incudostapedial pick it is turned about",
+                100.0 * share,
+                100.0 * limit
             ),
         }
     }

@@ -40,6 +40,7 @@ fn kinds(w: &[LandmarkWarning]) -> Vec<String> {
             LandmarkWarning::SideOverridden { .. } => "side".into(),
             LandmarkWarning::FarFromRegistration { landmark, .. } => format!("far {landmark}"),
             LandmarkWarning::HandednessDisagrees { .. } => "handedness".into(),
+            LandmarkWarning::WeakEdgeSupport { ossicle, .. } => format!("support {ossicle}"),
         })
         .collect()
 }
