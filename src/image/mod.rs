@@ -186,29 +186,28 @@ pub fn load_reporting(
 mod tests {
     use super::*;
 
+    fn ingest_config() -> IngestConfig {
+        IngestConfig {
+            max_file_mib: 64.0,
+            max_volume_mib: 64.0,
+            slice_gap_tolerance: 0.2,
+            orientation_tolerance: 1e-3,
+        }
+    }
+
     /// A series asked of a NIfTI file is refused before the file is read, not ignored.
     #[test]
     fn a_series_asked_of_a_nifti_file_is_refused() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("scan.nii.gz");
         std::fs::write(&path, b"not read").unwrap();
-        let e = load(
-            &path,
-            Some("3f2a9c01"),
-            &crate::config::Config::default_config().unwrap().ingest,
-        )
-        .unwrap_err();
+        let e = load(&path, Some("3f2a9c01"), &ingest_config()).unwrap_err();
         assert!(
             matches!(&e, ImageError::SeriesOfNifti { wanted, .. } if wanted == "3f2a9c01"),
             "{e}"
         );
         // without it the file is read (and found not to be a NIfTI image)
-        let e = load(
-            &path,
-            None,
-            &crate::config::Config::default_config().unwrap().ingest,
-        )
-        .unwrap_err();
+        let e = load(&path, None, &ingest_config()).unwrap_err();
         assert!(!matches!(e, ImageError::SeriesOfNifti { .. }), "{e}");
     }
 

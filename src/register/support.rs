@@ -17,7 +17,6 @@ use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
 use super::deform::{ProbeConfig, probe_surface};
-use super::landmarks::LandmarkWarning;
 use super::probes::probe_triangles_by_part;
 use crate::atlas::{Atlas, Part};
 use crate::image::Sampler;
@@ -31,19 +30,6 @@ const HALF_WEIGHT_OFFSET_MM: f64 = 0.3;
 /// truth had 0.34 and 0.36, every other case 0.43 or more (atlas-shape sample cases 0.52-0.85).
 /// Fitted to those cases, so a warning, not a verdict; a stapes 0.2-0.5 mm off can stay above it.
 pub const STAPES_SUPPORT_WARNING: f64 = 0.4;
-
-/// The warning for a stapes whose support (in `supports`) is below
-/// [`STAPES_SUPPORT_WARNING`], if it is.
-pub fn check_edge_support(supports: &[EdgeSupport]) -> Option<LandmarkWarning> {
-    supports
-        .iter()
-        .find(|s| s.part == Part::Stapes && s.share < STAPES_SUPPORT_WARNING)
-        .map(|s| LandmarkWarning::WeakEdgeSupport {
-            ossicle: s.part.name().to_string(),
-            share: s.share,
-            limit: STAPES_SUPPORT_WARNING,
-        })
-}
 
 /// One ossicle's edge support.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -82,33 +68,4 @@ pub fn edge_support(
             }
         })
         .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn only_a_stapes_under_the_limit_is_warned_about() {
-        let supports = |stapes: f64| {
-            [
-                (Part::Malleus, 0.1),
-                (Part::Incus, 0.2),
-                (Part::Stapes, stapes),
-            ]
-            .map(|(part, share)| EdgeSupport { part, share })
-        };
-        assert_eq!(check_edge_support(&supports(0.45)), None);
-        match check_edge_support(&supports(0.36)) {
-            Some(w @ LandmarkWarning::WeakEdgeSupport { .. }) => {
-                let text = w.to_string();
-                assert!(
-                    text.contains("only 36 % of the registered stapes"),
-                    "{text}"
-                );
-                assert!(text.contains("below 40 %"), "{text}");
-            }
-            other => panic!("expected a weak-support warning, got {other:?}"),
-        }
-    }
 }

@@ -36,10 +36,9 @@ use crate::progress::Reporter;
 use crate::register::DeformSettings;
 use crate::register::atlas_fit::{DeformRecord, LevelSeconds, fit_landmarks, place};
 use crate::register::deform::{DeformStatus, Steps};
-use crate::register::landmarks::{LandmarkWarning, check_against_registration};
+use crate::register::landmarks::{LandmarkWarning, check_against_registration, check_edge_support};
 use crate::register::placement::deform_placed_again;
 use crate::register::rigid::{RigidFit, RigidRecord};
-use crate::register::support::check_edge_support;
 use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
 };

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 pub use checks::{
     Band, CheckConfig, LandmarkWarning, REGISTRATION_AGREEMENT_MM, check_against_registration,
-    check_landmarks, check_landmarks_on_image,
+    check_edge_support, check_landmarks, check_landmarks_on_image,
 };
 pub use image_check::{BorderFit, ImageCheck, SwapEvidence};
 

@@ -20,7 +20,9 @@ use serde::{Deserialize, Serialize};
 
 use super::image_check::{ImageCheck, SwapEvidence};
 use super::{LandmarkError, LandmarkName, Landmarks};
+use crate::atlas::Part;
 use crate::image::Sampler;
+use crate::register::support::{EdgeSupport, STAPES_SUPPORT_WARNING};
 
 /// Tolerances and anatomical bands of the landmark checks (`[landmarks]` in pipeline.toml,
 /// which holds the defaults). The bands, how each was built and their sources are in
@@ -386,6 +388,19 @@ pub fn check_against_registration(
             })
         })
         .collect()
+}
+
+/// The warning for a stapes whose support (in `supports`) is below
+/// [`STAPES_SUPPORT_WARNING`], if it is.
+pub fn check_edge_support(supports: &[EdgeSupport]) -> Option<LandmarkWarning> {
+    supports
+        .iter()
+        .find(|s| s.part == Part::Stapes && s.share < STAPES_SUPPORT_WARNING)
+        .map(|s| LandmarkWarning::WeakEdgeSupport {
+            ossicle: s.part.name().to_string(),
+            share: s.share,
+            limit: STAPES_SUPPORT_WARNING,
+        })
 }
 
 const PAIRS: [(LandmarkName, LandmarkName, &str); 3] = [

@@ -221,3 +221,27 @@ fn an_impossible_distance_names_the_swap_that_would_fix_it() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn only_a_stapes_under_the_edge_support_limit_is_warned_about() {
+    let supports = |stapes: f64| {
+        [
+            (Part::Malleus, 0.1),
+            (Part::Incus, 0.2),
+            (Part::Stapes, stapes),
+        ]
+        .map(|(part, share)| EdgeSupport { part, share })
+    };
+    assert_eq!(check_edge_support(&supports(0.45)), None);
+    match check_edge_support(&supports(0.36)) {
+        Some(w @ LandmarkWarning::WeakEdgeSupport { .. }) => {
+            let text = w.to_string();
+            assert!(
+                text.contains("only 36 % of the registered stapes"),
+                "{text}"
+            );
+            assert!(text.contains("below 40 %"), "{text}");
+        }
+        other => panic!("expected a weak-support warning, got {other:?}"),
+    }
+}
