@@ -257,6 +257,34 @@ fn a_pick_two_tenths_of_a_millimetre_off_registers_alike() {
     );
 }
 
+/// Writes `landmarks` (a landmark file's JSON) into `chain` with each landmark carried by `f`,
+/// the transform its chain's surfaces were carried by.
+fn write_carried_landmarks(landmarks: &str, f: impl Fn([f64; 3]) -> [f64; 3], chain: &Path) {
+    let mut landmarks: Value = serde_json::from_str(landmarks).unwrap();
+    for name in ["umbo", "incudomalleolar", "incudostapedial"] {
+        let p: [f64; 3] = serde_json::from_value(landmarks[name].clone()).unwrap();
+        landmarks[name] = serde_json::json!(f(p));
+    }
+    std::fs::write(chain.join("landmarks.json"), landmarks.to_string()).unwrap();
+}
+
+/// A phantom of `chain` made in `tmp` and registered (`[validate]` off): the run's metrics
+/// and its output folder.
+fn register_phantom(
+    tmp: &Path,
+    chain: &Path,
+    seed: &str,
+    spacing: &str,
+    side: &str,
+) -> (Value, PathBuf) {
+    let case = phantom(&tmp.join("cases"), seed, spacing, side, chain);
+    let out = tmp.join("out");
+    let config = common::config_without_validation(tmp);
+    let (code, m) = otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
+    assert_eq!(code, 0, "{m}");
+    (m, out)
+}
+
 /// SOFA's chain stretched out of the atlas's proportions (x 1.15, z 0.88 about its centre; the
 /// kind of chain kept aside for a new user). Until 2026-11-27 `run` refused this case after
 /// the registration, a stapes tetrahedron at shape quality 0.012: when the FEM solver refused
@@ -291,19 +319,9 @@ fn a_chain_out_of_the_atlas_proportions_registers_without_a_flat_element() {
         }
         write_ply(&chain.join(format!("{o}.ply")), &mesh, &attrs).unwrap();
     }
-    let mut landmarks: Value =
-        serde_json::from_str(&std::fs::read_to_string(sofa.join("landmarks.json")).unwrap())
-            .unwrap();
-    for name in ["umbo", "incudomalleolar", "incudostapedial"] {
-        let p: [f64; 3] = serde_json::from_value(landmarks[name].clone()).unwrap();
-        landmarks[name] = serde_json::json!(stretch(p));
-    }
-    std::fs::write(chain.join("landmarks.json"), landmarks.to_string()).unwrap();
-    let case = phantom(&tmp.path().join("cases"), "202", "0.25", "right", &chain);
-    let out = tmp.path().join("out");
-    let config = common::config_without_validation(tmp.path());
-    let (code, m) = otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
-    assert_eq!(code, 0, "{m}");
+    let landmarks = std::fs::read_to_string(sofa.join("landmarks.json")).unwrap();
+    write_carried_landmarks(&landmarks, stretch, &chain);
+    let (m, out) = register_phantom(tmp.path(), &chain, "202", "0.25", "right");
     let (code, verdict) = otoatlas_json(&["verify", s(&out.join("package"))]);
     assert_eq!(code, 0, "verify refused the package: {verdict}");
     let (rigid, _) = chain_scores(&m, "rigid");
@@ -417,17 +435,8 @@ fn a_chain_larger_than_the_atlas_bounds_is_placed_again() {
         *v = scale([v.x, v.y, v.z]).into();
     }
     write_obj(&chain.join("chain.obj"), &mesh).unwrap();
-    let mut landmarks: Value = serde_json::from_str(CT_LANDMARKS).unwrap();
-    for name in ["umbo", "incudomalleolar", "incudostapedial"] {
-        let p: [f64; 3] = serde_json::from_value(landmarks[name].clone()).unwrap();
-        landmarks[name] = serde_json::json!(scale(p));
-    }
-    std::fs::write(chain.join("landmarks.json"), landmarks.to_string()).unwrap();
-    let case = phantom(&tmp.path().join("cases"), "201", "0.2", "left", &chain);
-    let out = tmp.path().join("out");
-    let config = common::config_without_validation(tmp.path());
-    let (code, m) = otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
-    assert_eq!(code, 0, "{m}");
+    write_carried_landmarks(CT_LANDMARKS, scale, &chain);
+    let (m, _) = register_phantom(tmp.path(), &chain, "201", "0.2", "left");
     let landmark_scale = m["rigid"]["scale"].as_f64().unwrap();
     let placed = m["deform"]["placed_again"].as_array().unwrap();
     let (rigid, _) = chain_scores(&m, "rigid");
