@@ -1,14 +1,15 @@
 //! The cohort report `batch` writes: one HTML page (summary counts, per-structure box plots of
 //! the registered MASD and HD95 across cases, the worst cases by their worst ossicle's MASD
-//! with links to their reports, the failed cases with their errors) and a CSV of every metric,
-//! one row per case and structure. Metric definitions: docs/metrics.md.
+//! with links to their reports, the cases `run` warned about with each warning, the failed
+//! cases with their errors) and a CSV of every metric, one row per case and structure, with
+//! the kinds of the case's warnings. Metric definitions: docs/metrics.md.
 
 use std::collections::BTreeMap;
 
 use super::error::ReportError;
 use super::html::{Cell, Figure, FigureContent, Page};
 use super::metrics::{
-    CaseMetrics, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics, anatomical_order,
+    CaseMetrics, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics, WarningRecord, anatomical_order,
 };
 use super::plot::{SMALL_N, Target, box_plot_svg};
 use crate::atlas::Part;
@@ -125,6 +126,33 @@ fn mechanics_passed(entry: &CohortEntry) -> Option<bool> {
     Some(entry.metrics.as_ref()?.mechanics.as_ref()?.passed)
 }
 
+/// The warnings `run` gave the case (landmarks, side, the registered pose).
+fn warnings(entry: &CohortEntry) -> &[WarningRecord] {
+    entry
+        .metrics
+        .as_ref()
+        .map_or(&[], |m| m.landmark_warnings.as_slice())
+}
+
+/// A warning's `kind`, as `metrics.json` names it.
+fn kind(warning: &WarningRecord) -> String {
+    serde_json::to_value(&warning.warning)
+        .ok()
+        .and_then(|v| v["kind"].as_str().map(str::to_string))
+        .unwrap_or_default()
+}
+
+/// The kinds of the case's warnings, space-separated.
+fn warnings_field(entry: &CohortEntry) -> String {
+    field(
+        &warnings(entry)
+            .iter()
+            .map(kind)
+            .collect::<Vec<_>>()
+            .join(" "),
+    )
+}
+
 fn mechanics_field(entry: &CohortEntry) -> String {
     match mechanics_passed(entry) {
         Some(true) => "pass".into(),
@@ -141,6 +169,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
     header.extend([
         "masd_improvement".into(),
         "mechanics".into(),
+        "warnings".into(),
         "error".into(),
     ]);
     let blank = vec![String::new(); 2 * METRICS.len() + 1];
@@ -156,6 +185,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
                     row.extend(metric_fields(Some(&s.registered)));
                     row.push(s.masd_improvement.map_or(String::new(), |i| i.to_string()));
                     row.push(mechanics_field(entry));
+                    row.push(warnings_field(entry));
                     row.push(String::new());
                     out += &(row.join(",") + "\n");
                 }
@@ -169,6 +199,7 @@ fn csv(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
                 row.push(String::new());
                 row.extend(blank.iter().cloned());
                 row.push(mechanics_field(entry));
+                row.push(warnings_field(entry));
                 row.push(error);
                 out += &(row.join(",") + "\n");
             }
@@ -186,6 +217,7 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
             "scored",
             "registered without segmentation",
             "failed",
+            "with warnings",
             "packages passing the mechanical gates",
         ],
         &[vec![
@@ -193,6 +225,11 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
             count("ok").to_string(),
             count("unscored").to_string(),
             count("failed").to_string(),
+            entries
+                .iter()
+                .filter(|e| !warnings(e).is_empty())
+                .count()
+                .to_string(),
             {
                 let validated: Vec<bool> = entries.iter().filter_map(mechanics_passed).collect();
                 format!(
@@ -259,6 +296,28 @@ fn html(entries: &[CohortEntry], outcomes: &[Outcome]) -> String {
         .collect();
         page.figures(&figures);
         worst_cases(&mut page, &scored);
+    }
+
+    page.heading("Cases with warnings");
+    let warned: Vec<Vec<Cell>> = entries
+        .iter()
+        .flat_map(|e| {
+            warnings(e).iter().map(|w| {
+                vec![
+                    Cell::Link {
+                        href: e.report_link.clone(),
+                        text: e.case.clone(),
+                    },
+                    Cell::Text(kind(w)),
+                    Cell::Text(w.message.clone()),
+                ]
+            })
+        })
+        .collect();
+    if warned.is_empty() {
+        page.paragraph("No case has a warning.", Some("ok"));
+    } else {
+        page.table_cells(&["case", "warning", "what it says"], &warned);
     }
 
     page.heading("Failed cases");
@@ -352,9 +411,19 @@ mod tests {
     }
 
     fn entries() -> Vec<CohortEntry> {
+        let mut b = scored("case-b", 0.25);
+        if let Some(m) = b.metrics.as_mut() {
+            m.landmark_warnings.push(WarningRecord::from(
+                &crate::register::landmarks::LandmarkWarning::WeakEdgeSupport {
+                    ossicle: "stapes".into(),
+                    share: 0.2,
+                    limit: 0.4,
+                },
+            ));
+        }
         vec![
             scored("case-a", 0.045),
-            scored("case-b", 0.25),
+            b,
             CohortEntry {
                 case: "case-c".into(),
                 metrics: None,
@@ -375,7 +444,7 @@ mod tests {
         let report = cohort_report(&entries()).unwrap();
         let lines: Vec<&str> = report.csv.lines().collect();
         let header: Vec<&str> = lines[0].split(',').collect();
-        assert_eq!(header.len(), 24);
+        assert_eq!(header.len(), 25);
         let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
         let rows: Vec<Vec<&str>> = lines[1..5].iter().map(|l| l.split(',').collect()).collect();
         // case-a: malleus (anatomical order) before incus
@@ -405,15 +474,17 @@ mod tests {
         assert_eq!(value(incus, "registered_surface_dice"), 0.99);
         assert_eq!(&rows[2][..3], ["case-b", "ok", "malleus"]);
         assert_eq!(rows[2][col("mechanics")], "fail");
+        assert_eq!(rows[2][col("warnings")], "weak_edge_support");
+        assert_eq!(malleus[col("warnings")], "");
         // the failed case: one row, its error quoted; the unscored case: one row
         assert_eq!(
             lines[5],
             format!(
                 "case-c,failed,{}\"landmarks: \"\"umbo\"\" missing, line 3\"",
-                ",".repeat(21)
+                ",".repeat(22)
             )
         );
-        assert_eq!(lines[6], format!("case-d,unscored{}", ",".repeat(22)));
+        assert_eq!(lines[6], format!("case-d,unscored{}", ",".repeat(23)));
         assert_eq!(lines.len(), 7);
     }
 
@@ -421,7 +492,10 @@ mod tests {
     fn html_counts_plots_links_the_worst_cases_and_lists_the_failed() {
         let html = cohort_report(&entries()).unwrap().html;
         assert!(html.contains(
-            "<tr><td>4</td><td>2</td><td>1</td><td>1</td><td>1 of 2 validated</td></tr>"
+            "<tr><td>4</td><td>2</td><td>1</td><td>1</td><td>1</td><td>1 of 2 validated</td></tr>"
+        ));
+        assert!(html.contains(
+            "<tr><td><a href=\"case-b/report.html\">case-b</a></td><td>weak_edge_support</td><td>only 20 % of the registered stapes"
         ));
         assert_eq!(html.matches("<svg").count(), 2, "MASD and HD95 box plots");
         let b = html
@@ -444,6 +518,7 @@ mod tests {
     fn a_cohort_without_scores_or_failures_says_so() {
         let html = cohort_report(&entries()[3..]).unwrap().html;
         assert!(html.contains("No case was scored against a segmentation."));
+        assert!(html.contains("No case has a warning."));
         assert!(html.contains("No case failed."));
     }
 }
