@@ -110,13 +110,27 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     let registered = surfaces(input.atlas, input.registered_nodes);
     let mut page = Page::new(&format!("otoatlas case report: {}", input.case_id));
     verdict(&mut page, &deform, scores);
-    match input.landmark_warnings.len() {
-        0 => &mut page,
-        n => page.paragraph(
+    let weak_pose = input
+        .landmark_warnings
+        .iter()
+        .filter(|w| w.subject() == "registration")
+        .count();
+    match (input.landmark_warnings.len() - weak_pose, weak_pose) {
+        (0, 0) => &mut page,
+        (n, 0) => page.paragraph(
             &format!(
                 "The landmarks are unusual but possible ({n} warning{}): see the landmarks in \
                  the case summary and check the picks on the overlays.",
                 if n == 1 { "" } else { "s" }
+            ),
+            Some("warn"),
+        ),
+        (n, _) => page.paragraph(
+            &format!(
+                "The registered pose may be wrong ({} warning{}): see the case summary and \
+                 check the ossicles on the overlays.",
+                n + weak_pose,
+                if n + weak_pose == 1 { "" } else { "s" }
             ),
             Some("warn"),
         ),

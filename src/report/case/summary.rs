@@ -300,7 +300,10 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
         }
     }
     for warning in input.landmark_warnings {
-        page.paragraph(&format!("landmark warning: {warning}"), Some("warn"));
+        page.paragraph(
+            &format!("{} warning: {warning}", warning.subject()),
+            Some("warn"),
+        );
     }
     let mut timings: Vec<Vec<String>> = input
         .timings

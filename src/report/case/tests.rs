@@ -388,6 +388,18 @@ fn landmark_warnings_are_shown_with_their_figures_and_flagged_at_the_top() {
         top < table && table < note,
         "verdict first, note under the landmarks"
     );
+    // a doubtful registered stapes is flagged as the registration's, not the landmarks'
+    let weak = LandmarkWarning::WeakEdgeSupport {
+        ossicle: "stapes".into(),
+        share: 0.2,
+        limit: 0.4,
+    };
+    let html = html_warned(&f, Accuracy::NoSegmentation, None, &[weak]);
+    assert!(html.contains("<p class=\"warn\">The registered pose may be wrong (1 warning)"));
+    assert!(
+        html.contains("<p class=\"warn\">registration warning: only 20 % of the registered stapes")
+    );
+    assert!(!html.contains("landmark warning"));
 }
 
 /// A package validation: the atlas's transfer function, and the package's with |H_V| halved

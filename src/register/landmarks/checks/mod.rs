@@ -218,6 +218,17 @@ pub enum LandmarkWarning {
     },
 }
 
+impl LandmarkWarning {
+    /// What the warning is about, for its prefix in logs and reports: "registration" for the
+    /// registered pose's own (`WeakEdgeSupport`), "landmark" for the others.
+    pub fn subject(&self) -> &'static str {
+        match self {
+            LandmarkWarning::WeakEdgeSupport { .. } => "registration",
+            _ => "landmark",
+        }
+    }
+}
+
 fn band_text([lo, hi]: [f64; 2]) -> String {
     format!("{lo:.2}-{hi:.2} mm")
 }
