@@ -12,12 +12,12 @@ use serde::{Deserialize, Serialize};
 
 use super::DeformSettings;
 use super::articulate::{Articulation, articulate, articulated_shape};
-use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, ProbeConfig, deform};
+use super::deform::{DeformError, DeformResult, DeformStatus, IterationStats, deform};
 use super::eardrum::{EardrumFit, fit_eardrum};
 use super::probes::probe_triangles;
 use super::refine::{Refinement, refine};
 use super::rigid::{RigidFit, SimilarityTransform, fit_similarity};
-use super::support::{EdgeSupport, edge_support};
+use super::support::EdgeSupport;
 use crate::atlas::Atlas;
 use crate::ear::Landmarks;
 use crate::image::Sampler;
@@ -56,7 +56,9 @@ pub struct Registered {
     /// The surface level after the FEM levels (absent when `[refine]` is off).
     pub refinement: Option<Refinement>,
     pub eardrum: EardrumFit,
-    /// How much of each registered ossicle's surface lies on a bone edge (`support`).
+    /// How much of each registered ossicle's surface lies on a bone edge (`support`): measured
+    /// on the registration `run` keeps (`placement::deform_placed_again`), empty on the
+    /// intermediate ones.
     pub edge_support: Vec<EdgeSupport>,
     /// The scale of each placement of the atlas made from a registration before this one
     /// (`placement::deform_placed_again`), in order.
@@ -256,17 +258,12 @@ pub fn deform_atlas(
             volume_ratio: flat.volume_ratio,
         });
     }
-    let surface_probe = ProbeConfig {
-        search_range_mm: refine_cfg.search_range_mm,
-        ..cfg.probe.clone()
-    };
-    let edge_support = edge_support(atlas, &result.positions, sampler, step, &surface_probe);
     Ok(Registered {
         articulation,
         deform: result,
         refinement,
         eardrum,
-        edge_support,
+        edge_support: Vec::new(),
         placed_again: Vec::new(),
         seconds,
     })
