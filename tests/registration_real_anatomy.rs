@@ -27,7 +27,8 @@ use std::path::{Path, PathBuf};
 
 use crate::common;
 use crate::common::{otoatlas, otoatlas_json, shared_anatomy};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
+use otoatlas::mesh::io::obj::{read_obj, write_obj};
 use otoatlas::mesh::io::ply::{read_ply, write_ply};
 use serde_json::Value;
 
@@ -112,6 +113,32 @@ pub(crate) fn ct_chain(anatomy: &Path, tmp: &Path) -> PathBuf {
     )
     .unwrap();
     std::fs::write(chain.join("landmarks.json"), CT_LANDMARKS).unwrap();
+    chain
+}
+
+/// The CT chain carried by `a` about the centroid of its vertices, with its landmarks, in
+/// `tmp/name`: a chain of other proportions than any at hand.
+pub(crate) fn transformed_ct_chain(
+    anatomy: &Path,
+    tmp: &Path,
+    name: &str,
+    a: Matrix3<f64>,
+) -> PathBuf {
+    let ct = ct_chain(anatomy, tmp);
+    let chain = tmp.join(name);
+    std::fs::create_dir_all(&chain).unwrap();
+    let mut mesh = read_obj(&ct.join("chain.obj")).unwrap();
+    let centre = mesh
+        .vertices
+        .iter()
+        .fold(Vector3::zeros(), |c, p| c + p.coords)
+        / mesh.vertices.len() as f64;
+    let carry = |p: [f64; 3]| -> [f64; 3] { (centre + a * (Vector3::from(p) - centre)).into() };
+    for v in &mut mesh.vertices {
+        *v = carry([v.x, v.y, v.z]).into();
+    }
+    write_obj(&chain.join("chain.obj"), &mesh).unwrap();
+    write_carried_landmarks(CT_LANDMARKS, carry, &chain);
     chain
 }
 
@@ -414,28 +441,16 @@ fn surface_volume(path: &Path) -> f64 {
 #[test]
 #[ignore = "heavy: one real-chain phantom registered, 6 s in debug; scripts/test.sh runs it"]
 fn a_chain_larger_than_the_atlas_bounds_is_placed_again() {
-    use otoatlas::mesh::io::obj::{read_obj, write_obj};
     let Some(anatomy) = shared_anatomy() else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();
-    let ct = ct_chain(&anatomy, tmp.path());
-    let chain = tmp.path().join("large");
-    std::fs::create_dir_all(&chain).unwrap();
-    let mut mesh = read_obj(&ct.join("chain.obj")).unwrap();
-    let centre = mesh
-        .vertices
-        .iter()
-        .fold(Vector3::zeros(), |c, p| c + p.coords)
-        / mesh.vertices.len() as f64;
-    let scale = |p: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|k| centre[k] + 1.15 * (p[k] - centre[k]))
-    };
-    for v in &mut mesh.vertices {
-        *v = scale([v.x, v.y, v.z]).into();
-    }
-    write_obj(&chain.join("chain.obj"), &mesh).unwrap();
-    write_carried_landmarks(CT_LANDMARKS, scale, &chain);
+    let chain = transformed_ct_chain(
+        &anatomy,
+        tmp.path(),
+        "large",
+        Matrix3::from_diagonal_element(1.15),
+    );
     let (m, _) = register_phantom(tmp.path(), &chain, "201", "0.2", "left");
     let landmark_scale = m["rigid"]["scale"].as_f64().unwrap();
     let placed = m["deform"]["placed_again"].as_array().unwrap();

@@ -91,6 +91,7 @@ pub fn proposal_record(p: &Proposal) -> Value {
             "incudostapedial": p.searched.incudostapedial.coords.as_slice(),
         },
         "rescales": p.rescales,
+        "poses_tried": p.poses_tried,
         "register_seconds": p.register_seconds,
     })
 }

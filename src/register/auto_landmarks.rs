@@ -1,5 +1,8 @@
 //! Landmarks proposed from the image, without a manual pick: the chain search places the
-//! atlas (`chain_search`), the deformable stage registers it, the atlas is placed again by
+//! atlas (`chain_search`), the deformable stage registers it (and, when that leaves the
+//! stapes poorly supported by the image, registers the search's next poses too and keeps the
+//! best supported: a search's best pose can be the chain turned about a joint, which no
+//! registration undoes), the atlas is placed again by
 //! the similarity of the registered ossicles and registered again (`rescale_passes` times),
 //! and the three landmarks are read off the registered atlas at their written definitions
 //! (docs/anatomy.md). Each landmark's confidence is how much of the bone surface around it
@@ -17,7 +20,10 @@ use super::deform::{DeformError, probe_surface};
 use super::landmarks::LandmarkWarning;
 use super::placement::{bone_nodes, placement_from_registration};
 use super::probes::probe_triangles;
-use crate::atlas::Atlas;
+use super::support::{
+    EdgeSupport, STAPES_SUPPORT_WARNING, mean_share, registered_support, weak_stapes,
+};
+use crate::atlas::{Atlas, Part};
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::image::Sampler;
 use crate::progress::Reporter;
@@ -77,8 +83,38 @@ pub struct Proposal {
     /// The scale of each placement after the first that was kept
     /// (`SearchConfig::rescale_passes`).
     pub rescales: Vec<f64>,
+    /// The search's poses registered, the first the search's best: more when the first
+    /// registration's stapes was poorly supported by the image (`support::weak_stapes`).
+    pub poses_tried: Vec<PoseTried>,
     /// Wall-clock seconds of the registration after the search.
     pub register_seconds: f64,
+}
+
+/// One pose of the chain search registered, and how well the image supports the result.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseTried {
+    /// The pose's score in the search \[fraction of a perfect edge\].
+    pub search_score: f64,
+    /// The pose's scale \[atlas\].
+    pub scale: f64,
+    /// The registered stapes's share of surface on a bone edge (`support`).
+    pub stapes_support: f64,
+    /// The registered ossicles' mean share: what the poses are judged by.
+    pub mean_support: f64,
+    /// The registration the proposal went on from.
+    pub kept: bool,
+}
+
+/// How much more of the registered ossicles' surface (mean share) an alternative pose must
+/// put on bone edges to replace the search's best.
+const SUPPORT_MARGIN: f64 = 0.02;
+
+/// The stapes's share in `supports` (1 when it has none to judge).
+fn stapes_share(supports: &[EdgeSupport]) -> f64 {
+    supports
+        .iter()
+        .find(|s| s.part == Part::Stapes)
+        .map_or(1.0, |s| s.share)
 }
 
 impl SideSource {
@@ -180,6 +216,54 @@ pub fn propose_landmarks(
     let placed = place(atlas, &chosen.atlas_to_image);
     let clock = std::time::Instant::now();
     let mut nodes = register(&placed)?;
+    let supports = |nodes: &[Point3<f64>]| {
+        registered_support(atlas, nodes, input.sampler, input.step, input.settings)
+    };
+    let first = supports(&nodes);
+    let mut poses_tried = vec![PoseTried {
+        search_score: chosen.score,
+        scale: chosen.atlas_to_image.scale,
+        stapes_support: stapes_share(&first),
+        mean_support: mean_share(&first),
+        kept: true,
+    }];
+    if weak_stapes(&first).is_some() {
+        progress.log(&format!(
+            "the registered stapes has {:.2} of its surface on a bone edge (under {STAPES_SUPPORT_WARNING}): \
+             registering from the search's next poses",
+            stapes_share(&first)
+        ));
+        let mut best = 0;
+        let alternatives = search.alternatives.iter().filter(|a| a.side == chosen.side);
+        for alternative in alternatives {
+            // an alternative that fails to register is one fewer candidate, not an error
+            let Ok(again) = register(&place(atlas, &alternative.atlas_to_image)) else {
+                continue;
+            };
+            let support = supports(&again);
+            poses_tried.push(PoseTried {
+                search_score: alternative.score,
+                scale: alternative.atlas_to_image.scale,
+                stapes_support: stapes_share(&support),
+                mean_support: mean_share(&support),
+                kept: false,
+            });
+            let last = poses_tried.len() - 1;
+            if poses_tried[last].mean_support >= poses_tried[best].mean_support + SUPPORT_MARGIN {
+                best = last;
+                nodes = again;
+            }
+        }
+        for (k, tried) in poses_tried.iter_mut().enumerate() {
+            tried.kept = k == best;
+        }
+        progress.log(&format!(
+            "kept pose {} of {} (mean edge support {:.2})",
+            best + 1,
+            poses_tried.len(),
+            poses_tried[best].mean_support
+        ));
+    }
     let mut rescales = Vec::with_capacity(input.search.rescale_passes);
     let bones = bone_nodes(atlas);
     for _ in 0..input.search.rescale_passes {
@@ -217,6 +301,7 @@ pub fn propose_landmarks(
         support,
         search,
         rescales,
+        poses_tried,
         register_seconds: clock.elapsed().as_secs_f64(),
     })
 }

@@ -16,10 +16,10 @@ use nalgebra::Point3;
 use super::DeformSettings;
 use super::atlas_fit::{Registered, deform_atlas, place};
 use super::chain_search::SCALE_RANGE;
-use super::deform::{DeformConfig, DeformError, ProbeConfig, Steps};
+use super::deform::{DeformConfig, DeformError, Steps};
 use super::refine::RefineConfig;
 use super::rigid::{SimilarityTransform, fit_similarity};
-use super::support::edge_support;
+use super::support::registered_support;
 use crate::atlas::{Atlas, Part};
 use crate::image::Sampler;
 use crate::progress::Reporter;
@@ -132,17 +132,8 @@ pub fn deform_placed_again(
     let seconds = clock.elapsed().as_secs_f64();
     let mut registered = deform_atlas(atlas, &start, placed, sampler, step, settings, progress)?;
     // measured here, on the registration kept, not on every intermediate one
-    let surface_probe = ProbeConfig {
-        search_range_mm: settings.refine.search_range_mm,
-        ..settings.deform.probe.clone()
-    };
-    registered.edge_support = edge_support(
-        atlas,
-        &registered.deform.positions,
-        sampler,
-        step,
-        &surface_probe,
-    );
+    registered.edge_support =
+        registered_support(atlas, &registered.deform.positions, sampler, step, settings);
     registered.placed_again = scales;
     registered.seconds.placement = seconds;
     Ok(registered)

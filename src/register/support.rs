@@ -16,6 +16,7 @@
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};
 
+use super::DeformSettings;
 use super::deform::{ProbeConfig, probe_surface};
 use super::probes::probe_triangles_by_part;
 use crate::atlas::{Atlas, Part};
@@ -29,6 +30,8 @@ const HALF_WEIGHT_OFFSET_MM: f64 = 0.3;
 /// cases (docs/registration.md, "Edge support"): the two stapes registered 0.4-0.8 mm off the
 /// truth had 0.34 and 0.36, every other case 0.43 or more (atlas-shape sample cases 0.52-0.85).
 /// Fitted to those cases, so a warning, not a verdict; a stapes 0.2-0.5 mm off can stay above it.
+/// `landmarks --auto` registers the chain search's next poses when its first registration is
+/// under it (`auto_landmarks`).
 pub const STAPES_SUPPORT_WARNING: f64 = 0.4;
 
 /// One ossicle's edge support.
@@ -68,4 +71,34 @@ pub fn edge_support(
             }
         })
         .collect()
+}
+
+/// The edge support of a registration made with `settings`, probed with the surface level's
+/// probe and range (what `run` records and warns on).
+pub fn registered_support(
+    atlas: &Atlas,
+    x: &[Point3<f64>],
+    sampler: &Sampler,
+    step: f64,
+    settings: DeformSettings,
+) -> Vec<EdgeSupport> {
+    let probe = ProbeConfig {
+        search_range_mm: settings.refine.search_range_mm,
+        ..settings.deform.probe.clone()
+    };
+    edge_support(atlas, x, sampler, step, &probe)
+}
+
+/// The stapes's support when it is below [`STAPES_SUPPORT_WARNING`].
+pub fn weak_stapes(supports: &[EdgeSupport]) -> Option<EdgeSupport> {
+    supports
+        .iter()
+        .find(|s| s.part == Part::Stapes && s.share < STAPES_SUPPORT_WARNING)
+        .copied()
+}
+
+/// The mean of the ossicles' shares, each ossicle counting alike (the stapes, a tenth of the
+/// chain's surface, as much as the malleus) \[0 to 1\].
+pub fn mean_share(supports: &[EdgeSupport]) -> f64 {
+    supports.iter().map(|s| s.share).sum::<f64>() / supports.len().max(1) as f64
 }

@@ -19,6 +19,8 @@
 //!    again on a sharp map at the image's resolution.
 //! 3. The best refined pose of each side; the better side wins, and the margin between the
 //!    two sides' scores is the handedness's evidence. Below `min_score` no chain was found.
+//!    The next distinct refined poses are kept as alternatives: the best score can go to the
+//!    chain turned about one of its joints by a few thousandths (`auto_landmarks`).
 //!
 //! The result is a similarity transform of the atlas onto the image: the start that the
 //! registration otherwise takes from three picked landmarks.
@@ -65,6 +67,15 @@ pub struct SearchConfig {
     /// (`auto_landmarks::propose_landmarks`).
     #[serde(default = "default_rescale_passes")]
     pub rescale_passes: usize,
+    /// Distinct refined poses of each side kept besides its best (2 mm or 30° from a better
+    /// one): registered in turn when the best one's registration leaves the stapes poorly
+    /// supported by the image (`auto_landmarks::propose_landmarks`).
+    #[serde(default = "default_alternative_poses")]
+    pub alternative_poses: usize,
+}
+
+fn default_alternative_poses() -> usize {
+    3
 }
 
 fn default_rescale_passes() -> usize {
@@ -80,6 +91,7 @@ impl Default for SearchConfig {
             min_score: 0.45,
             max_voxel_mm: 0.5,
             rescale_passes: default_rescale_passes(),
+            alternative_poses: default_alternative_poses(),
         }
     }
 }
@@ -289,6 +301,13 @@ fn refine(
     (pose, best)
 }
 
+/// Two poses are distinct candidates when their centres are over 2 mm or their turns over
+/// 30° apart.
+fn distinct_poses(a: &Pose, b: &Pose) -> bool {
+    (a.centre - b.centre).norm() > 2.0
+        || (a.rotation.transpose() * b.rotation).angle() > 30f64.to_radians()
+}
+
 /// One side's best pose.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SideMatch {
@@ -305,6 +324,8 @@ pub struct ChainSearch {
     pub best: SideMatch,
     /// The other side's best match (the handedness's evidence).
     pub other: SideMatch,
+    /// Each side's next distinct refined poses (2 mm or 30° from a better one), best first.
+    pub alternatives: Vec<SideMatch>,
     /// 1 - other / best: how much better the chosen side's mirror image fits \[fraction\].
     pub side_margin: f64,
     /// The image's air and bone levels \[image units\].
@@ -420,6 +441,7 @@ pub fn search_chain(
         rotations.len()
     ));
     let mut matches = Vec::new();
+    let mut alternatives = Vec::new();
     for side_atlas in sides {
         let centre = chain_centre(side_atlas.atlas);
         let (Some(coarse_template), Some(fine_template)) = (
@@ -462,14 +484,9 @@ pub fn search_chain(
             .flatten()
             .collect();
         found.sort_by(|a, b| b.0.total_cmp(&a.0));
-        // distinct poses: 2 mm or 30° from every one kept
         let mut kept: Vec<Pose> = Vec::new();
         for (_, pose) in &found {
-            let distinct = kept.iter().all(|k| {
-                (k.centre - pose.centre).norm() > 2.0
-                    || (k.rotation.transpose() * pose.rotation).angle() > 30f64.to_radians()
-            });
-            if distinct {
+            if kept.iter().all(|k| distinct_poses(k, pose)) {
                 kept.push(*pose);
                 if kept.len() == cfg.candidates.max(1) {
                     break;
@@ -501,7 +518,7 @@ pub fn search_chain(
             .collect();
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
         refined.truncate(FINE_CANDIDATES);
-        let best = refined
+        let mut sharp: Vec<(Pose, f64)> = refined
             .par_iter()
             .map(|(pose, _)| {
                 refine(
@@ -512,24 +529,45 @@ pub fn search_chain(
                     0.2f64.to_radians(),
                 )
             })
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let (pose, score) = best.unwrap_or((
-            Pose {
-                rotation: Rotation3::identity(),
-                centre: (lo + hi) / 2.0,
-                scale: 1.0,
-            },
-            f64::NEG_INFINITY,
-        ));
+            .collect();
+        sharp.sort_by(|a, b| b.1.total_cmp(&a.1));
         // atlas → image: x ↦ s R (x - c) + t
-        let m: Matrix3<f64> = *pose.rotation.matrix();
-        let translation = pose.centre - m * centre.coords * pose.scale;
-        matches.push(SideMatch {
-            side: side_atlas.side,
-            score,
-            atlas_to_image: SimilarityTransform::new(m, translation, pose.scale),
-        });
+        let side_match = |(pose, score): &(Pose, f64)| {
+            let m: Matrix3<f64> = *pose.rotation.matrix();
+            let translation = pose.centre - m * centre.coords * pose.scale;
+            SideMatch {
+                side: side_atlas.side,
+                score: *score,
+                atlas_to_image: SimilarityTransform::new(m, translation, pose.scale),
+            }
+        };
+        let mut distinct: Vec<&(Pose, f64)> = Vec::new();
+        for candidate in &sharp {
+            if distinct
+                .iter()
+                .all(|(k, _)| distinct_poses(k, &candidate.0))
+            {
+                distinct.push(candidate);
+            }
+        }
+        let best = distinct.first().map_or(
+            SideMatch {
+                side: side_atlas.side,
+                score: f64::NEG_INFINITY,
+                atlas_to_image: SimilarityTransform::identity(),
+            },
+            |c| side_match(c),
+        );
+        matches.push(best);
+        alternatives.extend(
+            distinct
+                .iter()
+                .skip(1)
+                .take(cfg.alternative_poses)
+                .map(|c| side_match(c)),
+        );
     }
+    alternatives.sort_by(|a, b| b.score.total_cmp(&a.score));
     let (a, b) = (matches[0], matches[1]);
     let (best, other) = if a.score >= b.score { (a, b) } else { (b, a) };
     if best.score < cfg.min_score || best.score.is_nan() {
@@ -549,6 +587,7 @@ pub fn search_chain(
     Ok(ChainSearch {
         best,
         other,
+        alternatives,
         side_margin: 1.0 - other.score.max(0.0) / best.score,
         air_level: levels.air,
         bone_level: levels.bone,

@@ -20,9 +20,8 @@ use serde::{Deserialize, Serialize};
 
 use super::image_check::{ImageCheck, SwapEvidence};
 use super::{LandmarkError, LandmarkName, Landmarks};
-use crate::atlas::Part;
 use crate::image::Sampler;
-use crate::register::support::{EdgeSupport, STAPES_SUPPORT_WARNING};
+use crate::register::support::{EdgeSupport, STAPES_SUPPORT_WARNING, weak_stapes};
 
 /// Tolerances and anatomical bands of the landmark checks (`[landmarks]` in pipeline.toml,
 /// which holds the defaults). The bands, how each was built and their sources are in
@@ -404,14 +403,11 @@ pub fn check_against_registration(
 /// The warning for a stapes whose support (in `supports`) is below
 /// [`STAPES_SUPPORT_WARNING`], if it is.
 pub fn check_edge_support(supports: &[EdgeSupport]) -> Option<LandmarkWarning> {
-    supports
-        .iter()
-        .find(|s| s.part == Part::Stapes && s.share < STAPES_SUPPORT_WARNING)
-        .map(|s| LandmarkWarning::WeakEdgeSupport {
-            ossicle: s.part.name().to_string(),
-            share: s.share,
-            limit: STAPES_SUPPORT_WARNING,
-        })
+    weak_stapes(supports).map(|s| LandmarkWarning::WeakEdgeSupport {
+        ossicle: s.part.name().to_string(),
+        share: s.share,
+        limit: STAPES_SUPPORT_WARNING,
+    })
 }
 
 const PAIRS: [(LandmarkName, LandmarkName, &str); 3] = [

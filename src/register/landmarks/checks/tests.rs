@@ -1,6 +1,7 @@
 //! The checks on the five real chains' extremes, the atlas, scales, flat and swapped triangles.
 
 use super::*;
+use crate::atlas::Part;
 use nalgebra::{Point3, Rotation3, Vector3};
 
 /// The shipped configuration's `[landmarks]`.
