@@ -18,7 +18,7 @@ use crate::io_util::write_atomic;
 use crate::pipeline::Case;
 use crate::pipeline::auto_landmarks::{proposal_files, proposal_record, propose};
 use crate::progress::Reporter;
-use crate::register::auto_landmarks::PoseTried;
+use crate::register::auto_landmarks::describe_poses_tried;
 use crate::register::landmarks::{PromptInput, check_landmarks, prompt_landmarks};
 
 /// Type the umbo, incudomalleolar and incudostapedial joints of a case (LPS mm or voxel
@@ -260,7 +260,9 @@ fn propose_and_write(
         proposal.search.seconds,
         proposal.register_seconds,
         placed_again(&proposal.rescales),
-        poses_tried(&proposal.poses_tried),
+        describe_poses_tried(&proposal.poses_tried)
+            .map(|line| format!("{line}\n"))
+            .unwrap_or_default(),
         fcsv.display(),
         mrk.display(),
         json_path.display()
@@ -351,37 +353,6 @@ fn mrk_path(fcsv: &Path) -> PathBuf {
 }
 
 /// ` (placed again at scale 1.010, 1.026)`, or nothing when the atlas was not placed again.
-/// A line on the search's poses registered, when more than its best was.
-fn poses_tried(tried: &[PoseTried]) -> String {
-    let (Some(first), Some(kept)) = (tried.first(), tried.iter().position(|t| t.kept)) else {
-        return String::new();
-    };
-    if tried.len() < 2 {
-        return String::new();
-    }
-    let verdict = match kept {
-        0 => "none put more of the ossicles on an edge, so the best pose stands".to_string(),
-        k => format!(
-            "pose {} (score {:.3}) kept: {:.2} of the stapes, {:.2} of the ossicles",
-            k + 1,
-            tried[k].search_score,
-            tried[k].stapes_support,
-            tried[k].mean_support
-        ),
-    };
-    format!(
-        "the search's best pose (score {:.3}) left {:.2} of the stapes's surface on a bone edge \
-         ({:.2} of the ossicles'); {}, {verdict}\n",
-        first.search_score,
-        first.stapes_support,
-        first.mean_support,
-        match tried.len() - 1 {
-            1 => "the search's next pose was registered".to_string(),
-            n => format!("the search's next {n} poses were registered"),
-        }
-    )
-}
-
 fn placed_again(scales: &[f64]) -> String {
     if scales.is_empty() {
         return String::new();

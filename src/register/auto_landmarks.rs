@@ -109,6 +109,30 @@ pub struct PoseTried {
 /// put on bone edges to replace the search's best.
 const SUPPORT_MARGIN: f64 = 0.02;
 
+/// A sentence on the search's poses registered, when more than its best was.
+pub fn describe_poses_tried(tried: &[PoseTried]) -> Option<String> {
+    let first = tried.first().filter(|_| tried.len() >= 2)?;
+    let verdict = match tried.iter().position(|t| t.kept) {
+        Some(k) if k > 0 => format!(
+            "pose {} (score {:.3}) kept: {:.2} of the stapes, {:.2} of the ossicles",
+            k + 1,
+            tried[k].search_score,
+            tried[k].stapes_support,
+            tried[k].mean_support
+        ),
+        _ => "none put more of the ossicles on an edge, so the best pose stands".to_string(),
+    };
+    let others = match tried.len() - 1 {
+        1 => "the search's next pose was registered".to_string(),
+        n => format!("the search's next {n} poses were registered"),
+    };
+    Some(format!(
+        "the search's best pose (score {:.3}) left {:.2} of the stapes's surface on a bone edge \
+         ({:.2} of the ossicles'); {others}, {verdict}",
+        first.search_score, first.stapes_support, first.mean_support
+    ))
+}
+
 /// The stapes's share in `supports` (1 when it has none to judge).
 fn stapes_share(supports: &[EdgeSupport]) -> f64 {
     supports

@@ -12,6 +12,6 @@ pub mod overlay;
 pub mod plot;
 pub mod slices;
 
-pub use case::{Accuracy, CaseReportInput, case_report_html};
+pub use case::{Accuracy, CaseReportInput, Proposed, case_report_html};
 pub use cohort::{CohortEntry, CohortReport, cohort_report};
 pub use error::ReportError;

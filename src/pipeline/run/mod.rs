@@ -42,7 +42,7 @@ use crate::register::rigid::{RigidFit, RigidRecord};
 use crate::report::metrics::{
     CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
 };
-use crate::report::{Accuracy, CaseReportInput, case_report_html};
+use crate::report::{Accuracy, CaseReportInput, Proposed, case_report_html};
 
 /// What `run` is asked to do besides the case and the configuration.
 #[derive(Debug, Clone)]
@@ -292,12 +292,14 @@ pub fn run_case(
         fit: &fit,
         landmark_warnings: &placed.warnings,
         landmarks: &placed.patient,
-        proposed_confidence: placed.proposal.as_ref().map(|record| {
-            LandmarkName::ALL.map(|name| {
+        proposed: placed.proposal.as_ref().map(|record| Proposed {
+            confidence: LandmarkName::ALL.map(|name| {
                 record["support"][name.key()]["confidence"]
                     .as_f64()
                     .unwrap_or(f64::NAN)
-            })
+            }),
+            // a proposal recorded before poses were judged has none to show
+            poses_tried: serde_json::from_value(record["poses_tried"].clone()).unwrap_or_default(),
         }),
         rigid_nodes: &rigid_nodes,
         registered_nodes: &deformed.nodes,

@@ -34,6 +34,7 @@ use crate::image::{LoadedImage, Sampler};
 use crate::mechanics::{Condition, Validation};
 use crate::mesh::TriMesh;
 use crate::register::atlas_fit::DeformRecord;
+use crate::register::auto_landmarks::PoseTried;
 use crate::register::landmarks::LandmarkWarning;
 use crate::register::rigid::RigidFit;
 
@@ -57,6 +58,14 @@ pub enum Accuracy<'a> {
 }
 
 /// Everything the case report shows.
+/// Landmarks proposed from the image, as the report shows them.
+pub struct Proposed {
+    /// Each landmark's confidence (`LandmarkName::ALL` order).
+    pub confidence: [f64; 3],
+    /// The chain search's poses registered.
+    pub poses_tried: Vec<PoseTried>,
+}
+
 pub struct CaseReportInput<'a> {
     pub case_id: &'a str,
     pub image: &'a LoadedImage,
@@ -72,8 +81,9 @@ pub struct CaseReportInput<'a> {
     pub landmark_warnings: &'a [LandmarkWarning],
     /// The patient's landmarks (drawn on the overlays).
     pub landmarks: &'a Landmarks,
-    /// Each landmark's confidence when they were proposed from the image; `None` for picks.
-    pub proposed_confidence: Option<[f64; 3]>,
+    /// What the proposal says when the landmarks were proposed from the image; `None` for
+    /// picks.
+    pub proposed: Option<Proposed>,
     /// Atlas nodes after the rigid fit and after the deformable registration.
     pub rigid_nodes: &'a [Point3<f64>],
     pub registered_nodes: &'a [Point3<f64>],
@@ -164,7 +174,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
         ("atlas after the rigid fit", RIGID_COLOUR),
         ("atlas after the deformable registration", REGISTERED_COLOUR),
         (
-            match input.proposed_confidence {
+            match input.proposed {
                 Some(_) => "landmarks proposed from the image (within 1 mm of the slice)",
                 None => "landmarks picked (within 1 mm of the slice)",
             },

@@ -9,6 +9,7 @@ use super::{CaseReportInput, mm};
 use crate::atlas::Part;
 use crate::ear::LandmarkName;
 use crate::mechanics::Condition;
+use crate::register::auto_landmarks::describe_poses_tried;
 use crate::register::refine::{RefineStop, Refinement};
 use crate::report::html::Page;
 use crate::report::metrics::{DeformSummary, HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics};
@@ -268,18 +269,18 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
         .enumerate()
         .map(|(k, (n, r))| {
             let mut row = vec![n.key().to_string(), mm(*r)];
-            if let Some(confidence) = input.proposed_confidence {
-                row.push(format!("{:.2}", confidence[k]));
+            if let Some(proposed) = &input.proposed {
+                row.push(format!("{:.2}", proposed.confidence[k]));
             }
             row
         })
         .collect();
-    match input.proposed_confidence {
+    match &input.proposed {
         None => {
             landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm)]);
             page.table(&["landmark", "rigid-fit residual (mm)"], &landmarks);
         }
-        Some(_) => {
+        Some(proposed) => {
             landmarks.push(vec!["RMS".into(), mm(input.fit.rms_mm), String::new()]);
             page.paragraph(
                 "The landmarks were proposed from the image, not picked: the atlas chain was \
@@ -297,6 +298,9 @@ pub(super) fn summary(page: &mut Page, input: &CaseReportInput, deform: &DeformS
                 ],
                 &landmarks,
             );
+            if let Some(line) = describe_poses_tried(&proposed.poses_tried) {
+                page.paragraph(&format!("Landmark proposal: {line}."), Some("note"));
+            }
         }
     }
     for warning in input.landmark_warnings {

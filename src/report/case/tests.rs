@@ -141,6 +141,16 @@ fn html_warned(
     mechanics: Option<&crate::mechanics::Validation>,
     landmark_warnings: &[LandmarkWarning],
 ) -> String {
+    html_proposed(f, accuracy, mechanics, landmark_warnings, None)
+}
+
+fn html_proposed(
+    f: &Fixture,
+    accuracy: Accuracy,
+    mechanics: Option<&crate::mechanics::Validation>,
+    landmark_warnings: &[LandmarkWarning],
+    proposed: Option<Proposed>,
+) -> String {
     let sampler = Sampler::new(&f.image.volume).unwrap();
     case_report_html(&CaseReportInput {
         case_id: "case-<7>",
@@ -153,7 +163,7 @@ fn html_warned(
         fit: &f.fit,
         landmark_warnings,
         landmarks: &f.atlas.landmark_positions(&f.rigid),
-        proposed_confidence: None,
+        proposed,
         rigid_nodes: &f.rigid,
         registered_nodes: &f.registered,
         deform: &f.deform,
@@ -404,6 +414,50 @@ fn landmark_warnings_are_shown_with_their_figures_and_flagged_at_the_top() {
 
 /// A package validation: the atlas's transfer function, and the package's with |H_V| halved
 /// at 4 kHz (-6 dB: one gate fails); no static-pressure curve.
+/// Proposed landmarks show their confidence, and when the chain search's best pose was
+/// doubted, which poses were registered and which was kept.
+#[test]
+fn proposed_landmarks_show_their_confidence_and_the_poses_registered() {
+    use crate::register::auto_landmarks::PoseTried;
+    let f = fixture();
+    let tried = |search_score, stapes_support, mean_support, kept| PoseTried {
+        search_score,
+        scale: 1.14,
+        stapes_support,
+        mean_support,
+        kept,
+    };
+    let proposed = |poses_tried| Proposed {
+        confidence: [0.71, 0.62, 0.93],
+        poses_tried,
+    };
+    let single = html_proposed(
+        &f,
+        Accuracy::NoSegmentation,
+        None,
+        &[],
+        Some(proposed(vec![tried(0.52, 0.61, 0.74, true)])),
+    );
+    assert!(single.contains("confidence (proposed)") && single.contains("0.93"));
+    assert!(!single.contains("Landmark proposal:"));
+    let replaced = html_proposed(
+        &f,
+        Accuracy::NoSegmentation,
+        None,
+        &[],
+        Some(proposed(vec![
+            tried(0.511, 0.13, 0.48, false),
+            tried(0.503, 0.40, 0.66, true),
+        ])),
+    );
+    assert!(replaced.contains("Landmark proposal:"), "no proposal note");
+    assert!(
+        replaced.contains("left 0.13 of the stapes")
+            && replaced.contains("next pose was registered, pose 2 (score 0.503) kept: 0.40 of the stapes, 0.66 of the ossicles"),
+        "the note does not give the poses' figures"
+    );
+}
+
 fn validation() -> crate::mechanics::Validation {
     use crate::mechanics::{
         Drive, Mechanics, Ossicles, StaticCurve, TfPoint, TransferFunction, relative_verdict,
