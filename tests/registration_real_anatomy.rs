@@ -426,6 +426,99 @@ fn a_mirrored_chain_is_the_other_ear_with_the_same_truth_volume() {
     assert!(volumes[0] > 0.0);
 }
 
+/// `phantom --vary-shape`: the case's truth is the chain mapped by the variation truth.json
+/// records (its volume times the map's determinant, its landmark triangle the mapped one), and
+/// the seed's other draws are those of the same seed without it. The atlas's own bones stand
+/// in for a real chain, so this needs no shared data.
+#[test]
+fn a_varied_chain_is_the_chain_mapped_by_the_recorded_variation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let exp = tmp.path().join("exp");
+    run_ok(&["atlas", "export", s(&exp), "--quiet"]);
+    let make = |name: &str, extra: &[&str]| -> (PathBuf, Value) {
+        let out = tmp.path().join(name);
+        let mut args = vec![
+            "phantom",
+            "--out",
+            s(&out),
+            "--seed",
+            "901",
+            "--anatomy",
+            s(&exp),
+        ];
+        args.extend_from_slice(extra);
+        args.push("--quiet");
+        run_ok(&args);
+        let case = out.join("case-001");
+        let truth =
+            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap())
+                .unwrap();
+        (case, truth)
+    };
+    let (plain, plain_truth) = make("plain", &[]);
+    let (varied, truth) = make("varied", &["--vary-shape"]);
+    assert!(plain_truth["anatomy"].get("variation").is_none());
+    for field in ["side", "cavity", "imaging"] {
+        assert_eq!(truth[field], plain_truth[field], "{field}");
+    }
+    assert_eq!(
+        truth["image"]["spacing_mm"],
+        plain_truth["image"]["spacing_mm"]
+    );
+    assert_eq!(truth["pose"]["rotation"], plain_truth["pose"]["rotation"]);
+
+    let variation = &truth["anatomy"]["variation"];
+    let map = Matrix3::from_fn(|r, c| variation["map"][r][c].as_f64().unwrap());
+    let det = map.determinant();
+    assert!((variation["volume_ratio"].as_f64().unwrap() - det).abs() < 1e-9);
+    assert!(
+        (det - 1.0).abs() > 0.01,
+        "seed 901 hardly varies the chain: {det}"
+    );
+    for part in ["malleus", "incus", "stapes"] {
+        let file = format!("segmentation/{part}.ply");
+        let ratio = surface_volume(&varied.join(&file)) / surface_volume(&plain.join(&file));
+        assert!(
+            (ratio - det).abs() < 1e-6,
+            "{part}: volume x {ratio}, det {det}"
+        );
+    }
+    // the landmark triangle: the chain's own landmarks mapped, up to the case's rigid pose
+    let chain = otoatlas::ear::read_landmarks(&exp.join("landmarks.json"))
+        .unwrap()
+        .landmarks
+        .points()
+        .map(|p| map * p.coords);
+    let exact: Vec<Vector3<f64>> = ["umbo", "incudomalleolar", "incudostapedial"]
+        .iter()
+        .map(|n| Vector3::from_fn(|i, _| truth["landmarks"][n][i].as_f64().unwrap()))
+        .collect();
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let expected = (chain[a] - chain[b]).norm();
+        let got = (exact[a] - exact[b]).norm();
+        assert!(
+            (got - expected).abs() < 1e-6,
+            "{a}-{b}: {got} mm, mapped {expected} mm"
+        );
+    }
+    // the picks are off their landmark by the same draws
+    let pick_offsets = |t: &Value| -> Vec<f64> {
+        ["umbo", "incudomalleolar", "incudostapedial"]
+            .iter()
+            .flat_map(|n| (0..3).map(move |i| (n, i)))
+            .map(|(n, i)| {
+                t["landmarks_picked"][n][i].as_f64().unwrap()
+                    - t["landmarks"][n][i].as_f64().unwrap()
+            })
+            .collect()
+    };
+    let (a, b) = (pick_offsets(&truth), pick_offsets(&plain_truth));
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-9),
+        "{a:?} {b:?}"
+    );
+}
+
 /// Enclosed volume of a PLY surface (outward triangles give a positive volume).
 fn surface_volume(path: &Path) -> f64 {
     let (mesh, _) = otoatlas::mesh::io::ply::read_ply(path).unwrap();

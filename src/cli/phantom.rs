@@ -10,8 +10,8 @@ use serde_json::json;
 use super::Report;
 use crate::Error;
 use crate::phantom::{
-    ChainAnatomy, ChainPhantoms, PhantomError, PhantomOptions, generate_case, generate_chain_case,
-    write_case,
+    ChainAnatomy, ChainPhantoms, ChainShape, PhantomError, PhantomOptions, generate_case,
+    generate_chain_case, write_case,
 };
 use crate::progress::Reporter;
 use crate::register::Side;
@@ -27,11 +27,15 @@ Examples:
   otoatlas phantom --out sample_cases --cases 3 --seed 2026
   otoatlas phantom --out /tmp/cases --cases 1 --seed 7 --spacing 0.2 --side left --artefacts
   otoatlas phantom --out real --cases 4 --seed 1 --anatomy CHAIN_DIR --blur 0.3
+  otoatlas phantom --out varied --cases 16 --seed 701 --anatomy CHAIN_DIR --vary-shape
 
 --anatomy CHAIN_DIR holds malleus, incus and stapes surfaces (or one fused chain.ply;
 .ply, .stl or .obj, in the folder or its surfaces/) and a landmark file that says the side
 (landmarks.json); the chain is the truth, mirrored when the side drawn or asked for is the
-other one, and the eardrum, canal, cavity and oval window come from the atlas around it."
+other one, and the eardrum, canal, cavity and oval window come from the atlas around it.
+--vary-shape gives each case its own linear variation of the chain's shape (about its
+centroid, landmarks alike), drawn from the seed apart from the case's other draws: a few real
+chains give a development set of many."
 )]
 pub struct PhantomArgs {
     /// Folder the case folders are written into (created if needed).
@@ -61,6 +65,10 @@ pub struct PhantomArgs {
     /// A real ossicular chain (surfaces and landmarks) to image instead of the atlas.
     #[arg(long, value_name = "CHAIN_DIR")]
     pub anatomy: Option<PathBuf>,
+    /// Vary the real chain's shape per case: stretched by 0.87-1.15 along three random
+    /// directions and sheared by up to 0.12 (truth.json's anatomy.variation).
+    #[arg(long, requires = "anatomy")]
+    pub vary_shape: bool,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -117,7 +125,14 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
         .map(ChainAnatomy::load)
         .transpose()
         .map_err(PhantomError::from)?
-        .map(ChainPhantoms::new);
+        .map(|chain| {
+            let shape = if args.vary_shape {
+                ChainShape::Varied
+            } else {
+                ChainShape::AsGiven
+            };
+            ChainPhantoms::new(chain, shape)
+        });
     check_writable(&args.out)?;
     check_replaceable(&args.out, args.cases)?;
     let bar = progress.task("phantom", u64::from(args.cases));

@@ -13,6 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use super::chain_variation::ChainVariation;
 use super::imaging::{Grid, ImagingParams, render};
 use super::mesh_chain::{ChainAnatomy, ChainError, MeshChain};
 use super::patient::{Chain, PatientAnatomy};
@@ -131,7 +132,7 @@ fn unit_vector(rng: &mut ChaCha8Rng) -> Vector3<f64> {
 }
 
 /// The rotation of a unit quaternion with Gaussian components: uniform over SO(3).
-fn uniform_rotation(rng: &mut ChaCha8Rng) -> Rotation3<f64> {
+pub(super) fn uniform_rotation(rng: &mut ChaCha8Rng) -> Rotation3<f64> {
     let q = Quaternion::from(nalgebra::Vector4::from_fn(|_, _| {
         StandardNormal.sample(rng)
     }));
@@ -262,37 +263,50 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
     Ok(made)
 }
 
+/// Whether each case images the real chain as it is or a seeded variation of its shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChainShape {
+    AsGiven,
+    /// Per case, the chain stretched and sheared by [`ChainVariation::draw`] of its seed.
+    Varied,
+}
+
 /// A real chain to make phantoms of: its placement in the atlas frame (landmark fit and ICP,
-/// the same for every case of one side) is made once per side, when first needed.
+/// the same for every case of one side) is made once per side, when first needed; a varied
+/// chain is placed anew for every case.
 pub struct ChainPhantoms {
     chain: ChainAnatomy,
+    shape: ChainShape,
     /// The placement on the right, then on the left side.
     placed: [Option<MeshChain>; 2],
 }
 
 impl ChainPhantoms {
-    pub fn new(chain: ChainAnatomy) -> ChainPhantoms {
+    pub fn new(chain: ChainAnatomy, shape: ChainShape) -> ChainPhantoms {
         ChainPhantoms {
             chain,
+            shape,
             placed: [None, None],
         }
     }
 
-    /// The chain placed on `side` (mirrored when it is the other ear).
+    /// The chain of case `seed` placed on `side` (mirrored when it is the other ear).
     fn placed(&mut self, side: Side, seed: u64) -> Result<&MeshChain, PhantomError> {
         let slot = &mut self.placed[match side {
             Side::Right => 0,
             Side::Left => 1,
         }];
-        let placed = match slot.take() {
-            Some(placed) => placed,
-            None => {
-                let mirrored = side != self.chain.side;
-                let chain = if mirrored {
-                    self.chain.mirrored()
-                } else {
-                    self.chain.clone()
+        let placed = match (slot.take(), self.shape) {
+            (Some(placed), ChainShape::AsGiven) => placed,
+            (_, shape) => {
+                let chain = match shape {
+                    ChainShape::AsGiven => self.chain.clone(),
+                    ChainShape::Varied => self
+                        .chain
+                        .varied(ChainVariation::draw(seed, self.chain.centroid())),
                 };
+                let mirrored = side != chain.side;
+                let chain = if mirrored { chain.mirrored() } else { chain };
                 let atlas =
                     side_anatomy(side).map_err(|source| PhantomError::Anatomy { seed, source })?;
                 MeshChain::place(&chain, atlas, mirrored)?
@@ -304,7 +318,8 @@ impl ChainPhantoms {
 
 /// Generates the case of `seed` whose ossicles are the real chain of `chains` (mirrored to the
 /// side drawn or asked for): no ossicle motions, shape detail, scale or deformation of its own
-/// (its size is its own), only pose, side, imaging and pick noise are drawn.
+/// (its size is its own), only pose, side, imaging and pick noise are drawn, and the chain's
+/// shape variation when `chains` varies it.
 pub fn generate_chain_case(
     seed: u64,
     options: &PhantomOptions,

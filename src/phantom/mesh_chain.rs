@@ -17,6 +17,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::chain_variation::ChainVariation;
 use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
 use super::truth::{ChainPlacement, ossicle_surfaces};
 use super::variability::Ossicle;
@@ -70,6 +71,8 @@ pub struct ChainAnatomy {
     pub parts: Vec<(PartKind, TriMesh)>,
     pub landmarks: Landmarks,
     pub side: Side,
+    /// The shape variation applied to the chain as read, if any.
+    pub variation: Option<ChainVariation>,
 }
 
 /// Errors reading a chain folder.
@@ -180,7 +183,44 @@ impl ChainAnatomy {
             parts,
             landmarks: file.landmarks,
             side,
+            variation: None,
         })
+    }
+
+    /// The centroid of the chain's surface vertices.
+    pub fn centroid(&self) -> Point3<f64> {
+        let (sum, n) = self
+            .parts
+            .iter()
+            .flat_map(|(_, m)| &m.vertices)
+            .fold((Vector3::zeros(), 0usize), |(s, n), p| {
+                (s + p.coords, n + 1)
+            });
+        Point3::from(sum / n.max(1) as f64)
+    }
+
+    /// The chain with `variation` applied to its surfaces and landmarks (a map of positive
+    /// determinant: the triangles stay outward).
+    pub fn varied(&self, variation: ChainVariation) -> ChainAnatomy {
+        ChainAnatomy {
+            name: self.name.clone(),
+            parts: self
+                .parts
+                .iter()
+                .map(|(k, m)| {
+                    (
+                        *k,
+                        TriMesh {
+                            vertices: m.vertices.iter().map(|p| variation.apply(p)).collect(),
+                            triangles: m.triangles.clone(),
+                        },
+                    )
+                })
+                .collect(),
+            landmarks: Landmarks::from_points(self.landmarks.points().map(|p| variation.apply(&p))),
+            side: self.side,
+            variation: Some(variation),
+        }
     }
 
     /// The same chain as the other ear: mirrored in x = 0 (triangles turned to stay outward).
@@ -206,6 +246,7 @@ impl ChainAnatomy {
                 Side::Left => Side::Right,
                 Side::Right => Side::Left,
             },
+            variation: self.variation.clone(),
         }
     }
 }
@@ -272,6 +313,7 @@ impl MeshChain {
             landmark_rms_mm: fit.rms_mm,
             icp_mean_mm,
             footplate_shift_mm: (footplate.center - atlas_fp.center).norm(),
+            variation: chain.variation.clone(),
         };
         Ok(MeshChain {
             atlas: plain,

@@ -4,6 +4,7 @@
 //! their ground truth. See docs/phantom.md.
 
 pub mod case_writer;
+pub mod chain_variation;
 pub mod drum;
 pub mod generator;
 pub mod imaging;
@@ -17,7 +18,7 @@ pub mod warp;
 
 pub use case_writer::write_case;
 pub use generator::{
-    ChainPhantoms, PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM, generate_case,
-    generate_chain_case,
+    ChainPhantoms, ChainShape, PhantomCase, PhantomError, PhantomOptions, SPACING_RANGE_MM,
+    generate_case, generate_chain_case,
 };
 pub use mesh_chain::{ChainAnatomy, ChainError};

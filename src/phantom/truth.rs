@@ -6,6 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::chain_variation::ChainVariation;
 use super::imaging::ImagingParams;
 use super::patient::PatientAnatomy;
 use super::scene::{CavityParams, TissueLevels};
@@ -226,6 +227,10 @@ pub struct ChainPlacement {
     pub icp_mean_mm: f64,
     /// How far the oval window was moved from the atlas's footplate \[mm\].
     pub footplate_shift_mm: f64,
+    /// The chain's shape variation (`phantom --vary-shape`), in the chain's own frame before
+    /// mirroring; absent when the chain was imaged as it is.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variation: Option<ChainVariation>,
 }
 
 #[cfg(test)]

@@ -21,9 +21,9 @@ use super::landmarks::LandmarkWarning;
 use super::placement::{bone_nodes, placement_from_registration};
 use super::probes::probe_triangles;
 use super::support::{
-    EdgeSupport, STAPES_SUPPORT_WARNING, mean_share, registered_support, weak_stapes,
+    STAPES_SUPPORT_WARNING, mean_share, registered_support, stapes_share, weak_stapes,
 };
-use crate::atlas::{Atlas, Part};
+use crate::atlas::Atlas;
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::image::Sampler;
 use crate::progress::Reporter;
@@ -131,14 +131,6 @@ pub fn describe_poses_tried(tried: &[PoseTried]) -> Option<String> {
          ({:.2} of the ossicles'); {others}, {verdict}",
         first.search_score, first.stapes_support, first.mean_support
     ))
-}
-
-/// The stapes's share in `supports` (1 when it has none to judge).
-fn stapes_share(supports: &[EdgeSupport]) -> f64 {
-    supports
-        .iter()
-        .find(|s| s.part == Part::Stapes)
-        .map_or(1.0, |s| s.share)
 }
 
 impl SideSource {
@@ -249,15 +241,15 @@ pub fn propose_landmarks(
         scale: chosen.atlas_to_image.scale,
         stapes_support: stapes_share(&first),
         mean_support: mean_share(&first),
-        kept: true,
+        kept: false,
     }];
+    let mut best = 0;
     if weak_stapes(&first).is_some() {
         progress.log(&format!(
             "the registered stapes has {:.2} of its surface on a bone edge (under {STAPES_SUPPORT_WARNING}): \
              registering from the search's next poses",
             stapes_share(&first)
         ));
-        let mut best = 0;
         let alternatives = search.alternatives.iter().filter(|a| a.side == chosen.side);
         for alternative in alternatives {
             // an alternative that fails to register is one fewer candidate, not an error
@@ -278,9 +270,6 @@ pub fn propose_landmarks(
                 nodes = again;
             }
         }
-        for (k, tried) in poses_tried.iter_mut().enumerate() {
-            tried.kept = k == best;
-        }
         progress.log(&format!(
             "kept pose {} of {} (mean edge support {:.2})",
             best + 1,
@@ -288,6 +277,7 @@ pub fn propose_landmarks(
             poses_tried[best].mean_support
         ));
     }
+    poses_tried[best].kept = true;
     let mut rescales = Vec::with_capacity(input.search.rescale_passes);
     let bones = bone_nodes(atlas);
     for _ in 0..input.search.rescale_passes {

@@ -89,12 +89,19 @@ pub fn registered_support(
     edge_support(atlas, x, sampler, step, &probe)
 }
 
+/// The stapes's support, if `supports` has one.
+fn stapes(supports: &[EdgeSupport]) -> Option<EdgeSupport> {
+    supports.iter().find(|s| s.part == Part::Stapes).copied()
+}
+
+/// The stapes's share of its surface on a bone edge (1 when it has none to judge) \[0 to 1\].
+pub fn stapes_share(supports: &[EdgeSupport]) -> f64 {
+    stapes(supports).map_or(1.0, |s| s.share)
+}
+
 /// The stapes's support when it is below [`STAPES_SUPPORT_WARNING`].
 pub fn weak_stapes(supports: &[EdgeSupport]) -> Option<EdgeSupport> {
-    supports
-        .iter()
-        .find(|s| s.part == Part::Stapes && s.share < STAPES_SUPPORT_WARNING)
-        .copied()
+    stapes(supports).filter(|s| s.share < STAPES_SUPPORT_WARNING)
 }
 
 /// The mean of the ossicles' shares, each ossicle counting alike (the stapes, a tenth of the
