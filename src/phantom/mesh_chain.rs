@@ -202,30 +202,25 @@ impl ChainAnatomy {
     /// The chain with `variation` applied to its surfaces and landmarks (a map of positive
     /// determinant: the triangles stay outward).
     pub fn varied(&self, variation: ChainVariation) -> ChainAnatomy {
-        ChainAnatomy {
-            name: self.name.clone(),
-            parts: self
-                .parts
-                .iter()
-                .map(|(k, m)| {
-                    (
-                        *k,
-                        TriMesh {
-                            vertices: m.vertices.iter().map(|p| variation.apply(p)).collect(),
-                            triangles: m.triangles.clone(),
-                        },
-                    )
-                })
-                .collect(),
-            landmarks: Landmarks::from_points(self.landmarks.points().map(|p| variation.apply(&p))),
-            side: self.side,
-            variation: Some(variation),
-        }
+        let mut varied = self.mapped(|p| variation.apply(p), false);
+        varied.variation = Some(variation);
+        varied
     }
 
     /// The same chain as the other ear: mirrored in x = 0 (triangles turned to stay outward).
     pub fn mirrored(&self) -> ChainAnatomy {
-        let flip = |p: &Point3<f64>| Point3::new(-p.x, p.y, p.z);
+        let mut mirrored = self.mapped(|p| Point3::new(-p.x, p.y, p.z), true);
+        mirrored.side = match self.side {
+            Side::Left => Side::Right,
+            Side::Right => Side::Left,
+        };
+        mirrored
+    }
+
+    /// The chain with `map` applied to its vertices and landmarks, its triangles turned when
+    /// the map reverses orientation (`reverses`).
+    fn mapped(&self, map: impl Fn(&Point3<f64>) -> Point3<f64>, reverses: bool) -> ChainAnatomy {
+        let triangle = |t: &[u32; 3]| if reverses { [t[0], t[2], t[1]] } else { *t };
         ChainAnatomy {
             name: self.name.clone(),
             parts: self
@@ -235,17 +230,14 @@ impl ChainAnatomy {
                     (
                         *k,
                         TriMesh {
-                            vertices: m.vertices.iter().map(flip).collect(),
-                            triangles: m.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect(),
+                            vertices: m.vertices.iter().map(&map).collect(),
+                            triangles: m.triangles.iter().map(triangle).collect(),
                         },
                     )
                 })
                 .collect(),
-            landmarks: Landmarks::from_points(self.landmarks.points().map(|p| flip(&p))),
-            side: match self.side {
-                Side::Left => Side::Right,
-                Side::Right => Side::Left,
-            },
+            landmarks: Landmarks::from_points(self.landmarks.points().map(|p| map(&p))),
+            side: self.side,
             variation: self.variation.clone(),
         }
     }

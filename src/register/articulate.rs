@@ -176,13 +176,13 @@ pub fn articulate(
             .map(|(_, t)| *t)
             .collect();
         let head = landmarks.get(LandmarkName::Incudostapedial);
-        let (turn, record) =
+        let (turn, shift, record) =
             stapes_turn::search(&stapes, placed, &head, sampler, cfg.stapes_turn_max_deg);
         // a turn about the head: x ↦ R (x − c) + c + (R − I)(c − head), c the pivot
         let m = &mut motions[STAPES];
         let lever = m.pivot - head;
         m.rotation = turn;
-        m.translation = turn * lever - lever;
+        m.translation = turn * lever - lever + shift;
         record
     });
     // the prior holds each bone near where the search left it
