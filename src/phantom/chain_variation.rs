@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::generator::uniform_rotation;
+use super::draws::uniform_rotation;
 
 /// Stretch factors along each direction are drawn from this range.
 pub const STRETCH_RANGE: (f64, f64) = (0.87, 1.15);

@@ -8,12 +8,13 @@
 //! uniform over SO(3), translations up to 60 mm per axis; landmark picks are off by a Gaussian
 //! of 0.15 mm RMS, cut at 0.3 mm (a careful reader's precision at 0.2 mm voxels).
 
-use nalgebra::{Matrix3, Point3, Quaternion, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::chain_variation::ChainVariation;
+use super::draws::uniform_rotation;
 use super::imaging::{Grid, ImagingParams, render};
 use super::mesh_chain::{ChainAnatomy, ChainError, MeshChain};
 use super::patient::{Chain, PatientAnatomy};
@@ -129,14 +130,6 @@ fn unit_vector(rng: &mut ChaCha8Rng) -> Vector3<f64> {
             return u;
         }
     }
-}
-
-/// The rotation of a unit quaternion with Gaussian components: uniform over SO(3).
-pub(super) fn uniform_rotation(rng: &mut ChaCha8Rng) -> Rotation3<f64> {
-    let q = Quaternion::from(nalgebra::Vector4::from_fn(|_, _| {
-        StandardNormal.sample(rng)
-    }));
-    UnitQuaternion::from_quaternion(q).to_rotation_matrix()
 }
 
 fn draw_motions(spec: &crate::atlas::AnatomySpec, rng: &mut ChaCha8Rng) -> Vec<OssicleMotion> {

@@ -5,6 +5,7 @@
 
 pub mod case_writer;
 pub mod chain_variation;
+pub mod draws;
 pub mod drum;
 pub mod generator;
 pub mod imaging;
