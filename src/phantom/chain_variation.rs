@@ -65,11 +65,11 @@ impl ChainVariation {
         }
     }
 
-    /// Where the variation carries `p`.
-    pub fn apply(&self, p: &Point3<f64>) -> Point3<f64> {
+    /// The map as a function: where the variation carries a point (its matrix built once).
+    pub fn mapping(&self) -> impl Fn(&Point3<f64>) -> Point3<f64> + use<> {
         let map = Matrix3::from_fn(|r, c| self.map[r][c]);
         let centre = Point3::from(self.centre);
-        centre + map * (p - centre)
+        move |p| centre + map * (p - centre)
     }
 }
 
@@ -82,7 +82,7 @@ mod tests {
         for seed in 0..50 {
             let centre = Point3::new(1.0, -2.0, 3.0);
             let v = ChainVariation::draw(seed, centre);
-            assert!((v.apply(&centre) - centre).norm() < 1e-12);
+            assert!((v.mapping()(&centre) - centre).norm() < 1e-12);
             let map = Matrix3::from_fn(|r, c| v.map[r][c]);
             // the singular values lie within the stretches widened by the shear
             let sv = map.singular_values();

@@ -289,10 +289,11 @@ impl ChainPhantoms {
             Side::Right => 0,
             Side::Left => 1,
         }];
-        let placed = match (slot.take(), self.shape) {
-            (Some(placed), ChainShape::AsGiven) => placed,
-            (_, shape) => {
-                let chain = match shape {
+        // as given, each side is placed once; varied, each case anew
+        let placed = match slot.take() {
+            Some(placed) if self.shape == ChainShape::AsGiven => placed,
+            _ => {
+                let chain = match self.shape {
                     ChainShape::AsGiven => self.chain.clone(),
                     ChainShape::Varied => self
                         .chain

@@ -202,7 +202,7 @@ impl ChainAnatomy {
     /// The chain with `variation` applied to its surfaces and landmarks (a map of positive
     /// determinant: the triangles stay outward).
     pub fn varied(&self, variation: ChainVariation) -> ChainAnatomy {
-        let mut varied = self.mapped(|p| variation.apply(p), false);
+        let mut varied = self.mapped(variation.mapping(), false);
         varied.variation = Some(variation);
         varied
     }
