@@ -18,7 +18,7 @@
 //! on (the development cases were seeds 1-4). The bounds below are regression bounds at the
 //! figures reached (README, "Accuracy on real chains"); the targets (chain MASD within half a
 //! voxel, HD95 within two voxels, ≥ 50 % improvement over rigid) are not all met yet (the CT
-//! chain's HD95, and its MASD on seed 101), and
+//! chain's HD95 on seeds 101-103: docs/registration.md, "What limits it on real chains"), and
 //! each case prints its figures against them. Every package must pass `otoatlas verify`:
 //! before the registration's element floors, springs sheared a tendon or joint element of
 //! every CT-chain case flat (shape quality 0.007-0.018), which `verify` refuses.
