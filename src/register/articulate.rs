@@ -28,7 +28,9 @@ use super::probes::probe_triangles_by_part;
 use super::stapes_turn::{self, StapesTurn};
 use crate::atlas::{Atlas, Part};
 use crate::ear::LandmarkName;
-use crate::fem::{FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver};
+use crate::fem::{
+    FactorPrecision, FemError, FemModel, FixedDofs, Spring, StaticOptions, StaticSolver,
+};
 use crate::image::Sampler;
 
 /// Stiffness of the springs carrying the bones to their poses, per Pa of the registration
@@ -368,6 +370,8 @@ pub fn articulated_shape(
         tangent_shift: 1e-6 * modulus_pa,
         balanced_below: 1e-3,
         stalled_below: 0.05,
+        // as the deformable stage's FEM levels (docs/fem.md, "A single-precision tangent")
+        tangent_precision: FactorPrecision::Single,
         ..StaticOptions::default()
     };
     match solver.solve_with_springs(&mut x, &springs, &options) {
