@@ -427,10 +427,7 @@ impl Atlas {
         ] {
             mp.barycentric.swap(2, 3);
         }
-        a.side = match self.side {
-            Side::Left => Side::Right,
-            Side::Right => Side::Left,
-        };
+        a.side = self.side.other();
         a
     }
 }

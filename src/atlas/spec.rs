@@ -195,10 +195,7 @@ impl AnatomySpec {
     /// The mirror image in the plane x = 0 (right ear ↔ left ear).
     pub fn mirrored(&self) -> AnatomySpec {
         let mut m = self.clone();
-        m.side = match self.side {
-            Side::Right => Side::Left,
-            Side::Left => Side::Right,
-        };
+        m.side = self.side.other();
         m.visit_vectors(&mut |v| v[0] = -v[0]);
         m
     }

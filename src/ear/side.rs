@@ -30,6 +30,14 @@ impl Side {
         }
     }
 
+    /// The other ear: the side of this ear's mirror image.
+    pub fn other(self) -> Side {
+        match self {
+            Side::Left => Side::Right,
+            Side::Right => Side::Left,
+        }
+    }
+
     /// The DICOM Laterality code.
     pub fn dicom_code(self) -> &'static str {
         match self {
@@ -50,5 +58,12 @@ mod tests {
         assert_eq!(Side::parse("B"), None);
         assert_eq!(Side::parse("U"), None);
         assert_eq!(Side::parse(Side::Left.dicom_code()), Some(Side::Left));
+    }
+
+    #[test]
+    fn the_other_side_of_the_other_side_is_the_side() {
+        assert_eq!(Side::Left.other(), Side::Right);
+        assert_eq!(Side::Right.other(), Side::Left);
+        assert_eq!(Side::Left.other().other(), Side::Left);
     }
 }

@@ -210,10 +210,7 @@ impl ChainAnatomy {
     /// The same chain as the other ear: mirrored in x = 0 (triangles turned to stay outward).
     pub fn mirrored(&self) -> ChainAnatomy {
         let mut mirrored = self.mapped(|p| Point3::new(-p.x, p.y, p.z), true);
-        mirrored.side = match self.side {
-            Side::Left => Side::Right,
-            Side::Right => Side::Left,
-        };
+        mirrored.side = self.side.other();
         mirrored
     }
 

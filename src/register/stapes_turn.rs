@@ -24,9 +24,9 @@
 //!
 //! Speed: the 2,601 turns are first screened on every 4th triangle of the surface (the
 //! contrast is an area-weighted mean, and a quarter of the triangles still covers the whole
-//! stapes), then the 32 best are scored on every triangle, and the 8 best of those with the 27
-//! head shifts: about a third of the samples of scoring every turn on every triangle (the head
-//! shifts add a third to the search's cost).
+//! stapes), then the 32 best are scored on every triangle, and the 8 best of those with the 26
+//! other head shifts (no shift is the finalist's own score): about a third of the samples of
+//! scoring every turn on every triangle (the head shifts add a third to the search's cost).
 
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
@@ -151,16 +151,23 @@ pub fn search(
         .map(|&(_, k)| (score(&patches, area, &candidates[k]), k))
         .collect();
     finalists.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-    // the best finalists, each with the head where the placement left it or shifted on a grid;
-    // the first scoring above every earlier one (and above no turn at all) is kept
-    let shifted: Vec<(usize, Vector3<f64>)> = finalists
+    // the best finalists, each with the head where the placement left it (the finalist's own
+    // score) or shifted on a grid; the first scoring above every earlier one (and above no
+    // turn at all) is kept
+    let shifted: Vec<(usize, Vector3<f64>, Option<f64>)> = finalists
         .iter()
         .take(SHIFTED_FINALISTS)
-        .flat_map(|&(_, k)| head_shifts().map(move |shift| (k, shift)))
+        .flat_map(|&(value, k)| {
+            std::iter::once((k, Vector3::zeros(), Some(value)))
+                .chain(head_shifts().map(move |shift| (k, shift, None)))
+        })
         .collect();
     let (contrast, turn, shift) = shifted
         .par_iter()
-        .map(|&(k, shift)| (score_at(&patches, area, &candidates[k], &shift), k, shift))
+        .map(|&(k, shift, known)| {
+            let value = known.unwrap_or_else(|| score_at(&patches, area, &candidates[k], &shift));
+            (value, k, shift)
+        })
         .collect::<Vec<_>>()
         .into_iter()
         .fold(
@@ -179,11 +186,11 @@ pub fn search(
     (turn, shift, record)
 }
 
-/// The shifts of the head tried with the best finalists: every combination of 0, +1 and -1
-/// steps along the three axes, no shift first (a tie keeps the head where it was).
+/// The shifts of the head tried with the best finalists besides none: every other
+/// combination of 0, +1 and -1 steps along the three axes (26).
 fn head_shifts() -> impl Iterator<Item = Vector3<f64>> {
     const STEPS: [f64; 3] = [0.0, HEAD_SHIFT_MM, -HEAD_SHIFT_MM];
-    (0..27).map(|k| Vector3::new(STEPS[k % 3], STEPS[k / 3 % 3], STEPS[k / 9]))
+    (1..27).map(|k| Vector3::new(STEPS[k % 3], STEPS[k / 3 % 3], STEPS[k / 9]))
 }
 
 /// The grid of turns: the stapes's `axis` tilted by 0, 5, ... `max_tilt_deg` degrees towards
