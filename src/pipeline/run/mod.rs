@@ -5,44 +5,36 @@
 //! succeeded; the patient package `OUT/package/` is written last, as a whole
 //! (`export::package`).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use std::collections::BTreeMap;
-
 use nalgebra::Point3;
-use serde::{Deserialize, Serialize};
 
 mod landmarks;
+mod outputs;
+mod stages;
 
 use super::case::{Case, ImageDigests};
-use super::score::{Reference, StructureScore, score};
-use super::stage::{Clock, Stage, artefact_path, read_record, run_or_resume};
+use super::score::{Reference, StructureScore};
+use super::stage::{Clock, Stage};
 use crate::Error;
 use crate::atlas::Atlas;
-use crate::atlas::export::export_atlas;
 use crate::config::Config;
 use crate::ear::{LandmarkName, Landmarks, Side};
 use crate::export::MechanicsSummary;
-use crate::export::package::{PACKAGE_DIR, PackageInput, write_package_logged};
+use crate::export::package::{PackageInput, write_package_logged};
 use crate::image::dicom::patient::read_patient_identity;
-use crate::image::{self, ImageRecord, LoadedImage, Sampler};
+use crate::image::{ImageRecord, LoadedImage, Sampler};
 use crate::io_util::{write_atomic, write_json_file};
-use crate::mechanics::{Condition, Validation};
-use crate::mesh::io::ply::{VertexAttributes, write_ply};
-use crate::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtp, write_vtu};
-use crate::pipeline::mechanics::validate_registered;
+use crate::mechanics::Condition;
 use crate::progress::Reporter;
-use crate::register::DeformSettings;
-use crate::register::atlas_fit::{DeformRecord, LevelSeconds, fit_landmarks, place};
-use crate::register::deform::{DeformStatus, Steps};
+use crate::register::atlas_fit::{DeformRecord, LevelSeconds, place};
 use crate::register::landmarks::{LandmarkWarning, check_against_registration, check_edge_support};
-use crate::register::placement::deform_placed_again;
-use crate::register::rigid::{RigidFit, RigidRecord};
-use crate::report::metrics::{
-    CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores, StructureMetrics,
-};
+use crate::report::metrics::{CaseMetrics, LandmarkMetrics, MechanicsOutcome, Scores};
 use crate::report::{Accuracy, CaseReportInput, Proposed, case_report_html};
+use outputs::{check_out_is_a_run, remove_previous_outputs};
+use stages::{deform, export, ingest, rigid, score_case, validate};
 
 /// What `run` is asked to do besides the case and the configuration.
 #[derive(Debug, Clone)]
@@ -84,61 +76,6 @@ pub struct RunSummary {
     /// Seconds per step: the stages that ran, then "validate" (when on) and "report".
     pub timings: Vec<(&'static str, f64)>,
     pub out: PathBuf,
-}
-
-/// The outputs a run writes after its stages (registered/, metrics, report, timings,
-/// mechanics, the package and its log), removed as soon as the image is read (and, resumed,
-/// found to be the earlier run's): a re-run that fails half-way never leaves an earlier
-/// run's package or report beside its own stages, and a resumed run refused for another side
-/// or another image leaves them as they were. The stages' artefacts stay (`--from` reads
-/// them).
-fn remove_previous_outputs(out: &Path) -> Result<(), Error> {
-    for (path, metadata) in previous_outputs(out) {
-        let removed = match metadata.is_dir() {
-            true => std::fs::remove_dir_all(&path),
-            false => std::fs::remove_file(&path),
-        };
-        removed.map_err(crate::io_util::io_err(&path))?;
-    }
-    Ok(())
-}
-
-/// The outputs of an earlier run present in `out` (`remove_previous_outputs`).
-fn previous_outputs(out: &Path) -> Vec<(PathBuf, std::fs::Metadata)> {
-    [
-        PACKAGE_DIR,
-        "package.log.json",
-        "registered",
-        "metrics.json",
-        "report.html",
-        "timings.json",
-        "mechanics.json",
-    ]
-    .iter()
-    .map(|name| out.join(name))
-    .filter_map(|path| std::fs::symlink_metadata(&path).ok().map(|m| (path, m)))
-    .collect()
-}
-
-/// Refuses an `out` that holds what a run would replace (`previous_outputs`) but is not an
-/// earlier run's output folder (it has no `stages/ingest.json`, the first thing a run
-/// writes): a report, a `registered/` folder or a package of the user's own, in a folder
-/// given as `--out` by mistake, is never removed.
-fn check_out_is_a_run(out: &Path) -> Result<(), Error> {
-    let found = previous_outputs(out);
-    if found.is_empty() || artefact_path(out, Stage::Ingest).is_file() {
-        return Ok(());
-    }
-    let names: Vec<String> = found
-        .iter()
-        .filter_map(|(path, _)| path.file_name())
-        .map(|name| name.to_string_lossy().into_owned())
-        .collect();
-    Err(Error::Usage(format!(
-        "--out {}: holds {} but no stages/ingest.json, so it is not an earlier run's output, and a run would replace them; expected a new or empty folder, or a previous run's",
-        out.display(),
-        names.join(", ")
-    )))
 }
 
 /// What every stage of one run reads.
@@ -186,13 +123,6 @@ struct Scored {
     scores: Scores,
     /// Scored in this run: each structure's deviation map and the segmentation read.
     in_memory: Option<(BTreeMap<String, StructureScore>, Reference)>,
-}
-
-/// The export stage's record (`OUT/stages/export.json`): the files written under
-/// `OUT/registered/`.
-#[derive(Debug, Serialize, Deserialize)]
-struct ExportRecord {
-    files: Vec<String>,
 }
 
 /// Runs `case` through the pipeline, reporting to `progress`.
@@ -357,270 +287,6 @@ pub fn run_case(
         timings: clock.0,
         out: out.clone(),
     })
-}
-
-/// Ingest: always read (the later stages need the voxels); on resume, the image must be the
-/// one the earlier run saw.
-fn ingest(cx: Context, clock: &mut Clock) -> Result<Ingested, Error> {
-    let Context {
-        case,
-        opts,
-        config,
-        progress,
-    } = cx;
-    progress.case_stage(&case.id, Stage::Ingest.name());
-    let t = Instant::now();
-    progress.log(&format!("{}: ingest {}", case.id, case.image.display()));
-    let loaded = image::load_reporting(
-        &case.image,
-        case.series.as_deref(),
-        &config.ingest,
-        progress,
-    )?;
-    let digests = case.image_digests()?;
-    let record = ImageRecord::of(&loaded, &case.image, digests.sha256());
-    if opts.from <= Stage::Ingest {
-        write_json_file(&artefact_path(&opts.out, Stage::Ingest), &record)?;
-    } else {
-        let before: ImageRecord = read_record(&opts.out, Stage::Ingest, opts.from)?;
-        let differences = before.differences(&record);
-        if !differences.is_empty() {
-            return Err(Error::Usage(format!(
-                "--from {}: {} is not the image the earlier run read from {} (they differ in {}); run from ingest",
-                opts.from.name(),
-                case.image.display(),
-                before.image,
-                differences.join(", ")
-            )));
-        }
-    }
-    let step = loaded.volume.smallest_spacing();
-    clock.record(Stage::Ingest.name(), t);
-    Ok(Ingested {
-        loaded,
-        record,
-        digests,
-        step,
-    })
-}
-
-/// The rigid (or similarity) fit of the atlas landmarks onto the patient's.
-fn rigid(cx: Context, placed: &Placed, clock: &mut Clock) -> Result<RigidFit, Error> {
-    let Context {
-        case,
-        opts,
-        config,
-        progress,
-    } = cx;
-    progress.case_stage(&case.id, Stage::Rigid.name());
-    let with_scale = config.rigid.with_scale;
-    let record: RigidRecord = run_or_resume(&opts.out, opts.from, Stage::Rigid, clock, || {
-        let fit = fit_landmarks(&placed.atlas, &placed.patient, with_scale).ok_or_else(|| {
-            Error::Usage("the landmarks are degenerate: no rigid fit exists".into())
-        })?;
-        Ok(RigidRecord::of(&fit, with_scale))
-    })?;
-    let fit = record.fit();
-    progress.log(&format!(
-        "{}: rigid fit, scale {:.3}, landmark RMS {:.3} mm",
-        case.id, fit.transform.scale, fit.rms_mm
-    ));
-    Ok(fit)
-}
-
-/// The deformable stage (per-ossicle poses, FEM levels, surface level, eardrum); on resume,
-/// its record and `stages/deform.vtu`.
-fn deform(
-    cx: Context,
-    atlas: &Atlas,
-    rigid_nodes: &[Point3<f64>],
-    sampler: &Sampler,
-    step: f64,
-    clock: &mut Clock,
-) -> Result<Deformed, Error> {
-    let Context {
-        case,
-        opts,
-        config,
-        progress,
-    } = cx;
-    progress.case_stage(&case.id, Stage::Deform.name());
-    let deform_vtu = opts.out.join("stages").join("deform.vtu");
-    let mut resumed = true;
-    let mut level_seconds = None;
-    let mut nodes = Vec::new();
-    let record: DeformRecord = run_or_resume(&opts.out, opts.from, Stage::Deform, clock, || {
-        resumed = false;
-        let settings = DeformSettings {
-            articulate: &config.articulate,
-            deform: &config.deform,
-            refine: &config.refine,
-            steps: Steps::Newton,
-        };
-        let registered =
-            deform_placed_again(atlas, rigid_nodes, sampler, step, settings, progress)?;
-        if let DeformStatus::InversionGuard { message } = &registered.deform.status {
-            progress.log(&format!(
-                "{}: deformable stage stopped at its last valid state: {message}",
-                case.id
-            ));
-        }
-        level_seconds = Some(registered.seconds);
-        let mut mesh = atlas.mesh.clone();
-        mesh.tets.nodes = registered.deform.positions.clone();
-        write_vtu(&deform_vtu, &mesh, &[], VtuEncoding::Base64)?;
-        nodes = registered.deform.positions.clone();
-        Ok(registered.record(step))
-    })?;
-    if resumed {
-        let (mesh, _) = read_vtu(&deform_vtu)?;
-        if mesh.tets.nodes.len() != atlas.nodes().len() {
-            return Err(Error::Usage(format!(
-                "{}: {} nodes, the atlas has {}; run from deform",
-                deform_vtu.display(),
-                mesh.tets.nodes.len(),
-                atlas.nodes().len()
-            )));
-        }
-        nodes = mesh.tets.nodes;
-    }
-    Ok(Deformed {
-        nodes,
-        record,
-        level_seconds,
-    })
-}
-
-/// Scores the rigid and the registered atlas against the case's segmentation, when it has one.
-fn score_case(
-    cx: Context,
-    atlas: &Atlas,
-    rigid_nodes: &[Point3<f64>],
-    nodes: &[Point3<f64>],
-    step: f64,
-    clock: &mut Clock,
-) -> Result<Option<Scored>, Error> {
-    let Context {
-        case,
-        opts,
-        config,
-        progress,
-    } = cx;
-    progress.case_stage(&case.id, Stage::Score.name());
-    let Some(segmentation) = &case.segmentation else {
-        return Ok(None);
-    };
-    let mut in_memory = None;
-    let scores: Scores = run_or_resume(&opts.out, opts.from, Stage::Score, clock, || {
-        let reference = Reference::load(segmentation, &config.ingest)?;
-        let [rigid, registered] = score(atlas, [rigid_nodes, nodes], &reference, step)?;
-        let scores = scores_of(&rigid, &registered);
-        in_memory = Some((registered, reference));
-        Ok(scores)
-    })?;
-    Ok(Some(Scored { scores, in_memory }))
-}
-
-/// Per structure: the rigid-only and the registered surface distances, and the MASD
-/// improvement of the deformable stage.
-fn scores_of(
-    rigid: &BTreeMap<String, StructureScore>,
-    registered: &BTreeMap<String, StructureScore>,
-) -> Scores {
-    registered
-        .iter()
-        .map(|(name, r)| {
-            let before = rigid.get(name).map(|s| s.distances);
-            let improvement = before.as_ref().map(|b| 1.0 - r.distances.masd / b.masd);
-            let metrics = StructureMetrics {
-                registered: r.distances,
-                rigid: before,
-                masd_improvement: improvement,
-            };
-            (name.clone(), metrics)
-        })
-        .collect()
-}
-
-/// The registered atlas's surfaces, volume and landmarks, and each scored structure's
-/// deviation map (PLY and VTP), under `OUT/registered/`.
-fn export(
-    cx: Context,
-    atlas: &Atlas,
-    nodes: &[Point3<f64>],
-    scored: &Option<Scored>,
-    clock: &mut Clock,
-) -> Result<(), Error> {
-    let (case, out, progress) = (cx.case, &cx.opts.out, cx.progress);
-    progress.case_stage(&case.id, Stage::Export.name());
-    let t = Instant::now();
-    let registered_dir = out.join("registered");
-    let mut files = export_atlas(atlas, nodes, &registered_dir)?.files;
-    if let Some(Scored {
-        in_memory: Some((per_structure, _)),
-        ..
-    }) = scored
-    {
-        for (name, s) in per_structure {
-            let path = registered_dir.join("deviation").join(format!("{name}.ply"));
-            let attrs = VertexAttributes {
-                quality: Some(s.deviation.clone()),
-                colors: Some(s.colours.clone()),
-            };
-            write_ply(&path, &s.surface, &attrs)?;
-            // the same map for VTK and ParaView, whose PLY reader drops `quality`
-            let vtp = path.with_extension("vtp");
-            write_vtp(
-                &vtp,
-                &s.surface,
-                &[("deviation_mm", s.deviation.as_slice())],
-            )?;
-            files.push(path);
-            files.push(vtp);
-        }
-    }
-    let record = ExportRecord {
-        files: files.iter().map(|f| f.display().to_string()).collect(),
-    };
-    write_json_file(&artefact_path(out, Stage::Export), &record)?;
-    clock.record(Stage::Export.name(), t);
-    Ok(())
-}
-
-/// The registered package's mechanics against the atlas (`mechanics.json`), when
-/// `[validate]` is on.
-fn validate(
-    cx: Context,
-    atlas: &Atlas,
-    nodes: &[Point3<f64>],
-    clock: &mut Clock,
-) -> Result<Option<Validation>, Error> {
-    let (case, out, config, progress) = (cx.case, &cx.opts.out, cx.config, cx.progress);
-    if !config.validate.enabled {
-        // an earlier run's verdict was removed with its other outputs at the start
-        return Ok(None);
-    }
-    progress.case_stage(&case.id, "validate");
-    let t = Instant::now();
-    let mut v = validate_registered(atlas, nodes, &config.validate, progress)?;
-    // `atlas` is already the atlas under the run's condition; the record says which
-    v.condition = cx.opts.condition;
-    write_json_file(&out.join("mechanics.json"), &v)?;
-    progress.log(&format!(
-        "{}: mechanics against the atlas: {} ({} of {} gates failed)",
-        case.id,
-        if v.verdict.passed { "pass" } else { "FAIL" },
-        v.verdict.failures().count(),
-        v.verdict.gates.len()
-    ));
-    if let Some(why) = &v.mechanics.udsp.failure {
-        progress.log(&format!(
-            "{}: static pressure stopped short: {why}",
-            case.id
-        ));
-    }
-    clock.record("validate", t);
-    Ok(Some(v))
 }
 
 /// `report.html`.
