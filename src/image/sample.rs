@@ -10,15 +10,29 @@ use super::Volume;
 pub struct Sampler<'a> {
     volume: &'a Volume,
     world_to_index: Matrix3<f64>,
+    /// Per axis: the last voxel centre's index, the last cell's first index, and the step
+    /// in `data` to the next voxel (0 along an axis of one voxel, which has no next).
+    top: [f64; 3],
+    last_cell: [usize; 3],
+    step: [usize; 3],
 }
 
 impl<'a> Sampler<'a> {
-    /// Prepares `volume`; `None` if its geometry is degenerate (singular direction x spacing).
+    /// Prepares `volume`; `None` if its geometry is degenerate (singular direction x spacing)
+    /// or it has no voxel.
     pub fn new(volume: &'a Volume) -> Option<Sampler<'a>> {
         let world_to_index = volume.index_to_world_matrix().try_inverse()?;
+        let d = volume.dims;
+        if volume.is_empty() || volume.data.len() != volume.len() {
+            return None;
+        }
+        let stride = [1, d[0], d[0] * d[1]];
         Some(Sampler {
             volume,
             world_to_index,
+            top: d.map(|n| (n - 1) as f64),
+            last_cell: d.map(|n| n.saturating_sub(2)),
+            step: std::array::from_fn(|a| if d[a] > 1 { stride[a] } else { 0 }),
         })
     }
 
@@ -43,27 +57,28 @@ impl<'a> Sampler<'a> {
     #[inline]
     pub fn sample(&self, p: &Point3<f64>) -> Option<f32> {
         let ijk = self.index_of(p);
-        let d = self.volume.dims;
-        let mut base = [0usize; 3];
+        let stride = [
+            1,
+            self.volume.dims[0],
+            self.volume.dims[0] * self.volume.dims[1],
+        ];
+        let mut i0 = 0;
         let mut frac = [0f64; 3];
         for a in 0..3 {
-            let top = (d[a] - 1) as f64;
+            let top = self.top[a];
             // round-off at the outer voxel centres still counts as inside
             if !(ijk[a] >= -1e-9 && ijk[a] <= top + 1e-9) {
                 return None;
             }
+            // not negative, so truncation is the floor (and cheaper); along an axis of one
+            // voxel x and the cell's start are both 0, so its fraction is 0
             let x = ijk[a].clamp(0.0, top);
-            let b = (x.floor() as usize).min(d[a].saturating_sub(2));
-            base[a] = b;
-            frac[a] = if d[a] == 1 { 0.0 } else { x - b as f64 };
+            let b = (x as usize).min(self.last_cell[a]);
+            i0 += b * stride[a];
+            frac[a] = x - b as f64;
         }
-        let step = [
-            usize::from(d[0] > 1),
-            if d[1] > 1 { d[0] } else { 0 },
-            if d[2] > 1 { d[0] * d[1] } else { 0 },
-        ];
+        let step = self.step;
         let v = &self.volume.data;
-        let i0 = self.volume.index(base[0], base[1], base[2]);
         let lerp = |a: f32, b: f32, t: f64| a as f64 + (b as f64 - a as f64) * t;
         let c00 = lerp(v[i0], v[i0 + step[0]], frac[0]);
         let c10 = lerp(v[i0 + step[1]], v[i0 + step[1] + step[0]], frac[0]);

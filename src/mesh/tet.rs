@@ -182,27 +182,36 @@ impl TetMesh {
             BoundaryOf::Region(r) => self.regions[t] == r,
             BoundaryOf::Regions(rs) => rs.contains(&self.regions[t]),
         };
-        let key = |t: usize, f: &[usize; 3]| {
-            let mut k = f.map(|i| self.tets[t][i]);
-            k.sort_unstable();
-            k
-        };
-        let mut count: HashMap<[u32; 3], u32> = HashMap::new();
-        for t in (0..self.tets.len()).filter(|&t| selected(t)) {
-            for f in &TET_FACES {
-                *count.entry(key(t, f)).or_insert(0) += 1;
-            }
+        // every selected tet's faces by their sorted nodes; a face is on the boundary when
+        // no other selected tet has it (a sort, not a hash map: this runs on every surface
+        // query of an atlas, several per registration)
+        let mut faces: Vec<([u32; 3], u32)> = (0..self.tets.len())
+            .filter(|&t| selected(t))
+            .flat_map(|t| {
+                TET_FACES.iter().enumerate().map(move |(f, corners)| {
+                    let mut k = corners.map(|i| self.tets[t][i]);
+                    k.sort_unstable();
+                    (k, (4 * t + f) as u32)
+                })
+            })
+            .collect();
+        faces.sort_unstable();
+        let mut on_boundary = vec![false; 4 * self.tets.len()];
+        for (k, &(key, slot)) in faces.iter().enumerate() {
+            let shared = (k > 0 && faces[k - 1].0 == key)
+                || faces.get(k + 1).is_some_and(|next| next.0 == key);
+            on_boundary[slot as usize] = !shared;
         }
-        let mut vertex_of_node: HashMap<u32, u32> = HashMap::new();
+        let mut vertex_of_node: Vec<Option<u32>> = vec![None; self.nodes.len()];
         let mut out = Boundary::default();
         for t in (0..self.tets.len()).filter(|&t| selected(t)) {
-            for f in &TET_FACES {
-                if count.get(&key(t, f)) != Some(&1) {
+            for (f, corners) in TET_FACES.iter().enumerate() {
+                if !on_boundary[4 * t + f] {
                     continue;
                 }
-                let tri = f.map(|i| {
+                let tri = corners.map(|i| {
                     let node = self.tets[t][i];
-                    *vertex_of_node.entry(node).or_insert_with(|| {
+                    *vertex_of_node[node as usize].get_or_insert_with(|| {
                         out.node_of_vertex.push(node);
                         out.surface.vertices.push(self.nodes[node as usize]);
                         (out.node_of_vertex.len() - 1) as u32
