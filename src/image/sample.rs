@@ -10,10 +10,12 @@ use super::Volume;
 pub struct Sampler<'a> {
     volume: &'a Volume,
     world_to_index: Matrix3<f64>,
-    /// Per axis: the last voxel centre's index, the last cell's first index, and the step
-    /// in `data` to the next voxel (0 along an axis of one voxel, which has no next).
+    /// Per axis: the last voxel centre's index, the last cell's first index, the stride of
+    /// `data`, and the step in `data` to the next voxel (the stride, or 0 along an axis of
+    /// one voxel, which has no next).
     top: [f64; 3],
     last_cell: [usize; 3],
+    stride: [usize; 3],
     step: [usize; 3],
 }
 
@@ -32,6 +34,7 @@ impl<'a> Sampler<'a> {
             world_to_index,
             top: d.map(|n| (n - 1) as f64),
             last_cell: d.map(|n| n.saturating_sub(2)),
+            stride,
             step: std::array::from_fn(|a| if d[a] > 1 { stride[a] } else { 0 }),
         })
     }
@@ -57,11 +60,6 @@ impl<'a> Sampler<'a> {
     #[inline]
     pub fn sample(&self, p: &Point3<f64>) -> Option<f32> {
         let ijk = self.index_of(p);
-        let stride = [
-            1,
-            self.volume.dims[0],
-            self.volume.dims[0] * self.volume.dims[1],
-        ];
         let mut i0 = 0;
         let mut frac = [0f64; 3];
         for a in 0..3 {
@@ -74,7 +72,7 @@ impl<'a> Sampler<'a> {
             // voxel x and the cell's start are both 0, so its fraction is 0
             let x = ijk[a].clamp(0.0, top);
             let b = (x as usize).min(self.last_cell[a]);
-            i0 += b * stride[a];
+            i0 += b * self.stride[a];
             frac[a] = x - b as f64;
         }
         let step = self.step;

@@ -152,8 +152,8 @@ pub fn search(
         .collect();
     finalists.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     // the best finalists, each with the head where the placement left it (the finalist's own
-    // score) or shifted on a grid; the first scoring above every earlier one (and above no
-    // turn at all) is kept
+    // score, first: a tie keeps the head there) or shifted on a grid; the first scoring above
+    // every earlier one (and above no turn at all) is kept
     let shifted: Vec<(usize, Vector3<f64>, Option<f64>)> = finalists
         .iter()
         .take(SHIFTED_FINALISTS)
