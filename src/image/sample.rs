@@ -137,6 +137,35 @@ mod tests {
     }
 
     #[test]
+    fn a_single_slice_is_sampled_bilinearly_in_its_plane() {
+        let v = Volume {
+            dims: [3, 2, 1],
+            spacing: [1.0, 1.0, 1.0],
+            origin: Vector3::zeros(),
+            direction: Matrix3::identity(),
+            data: vec![0.0, 1.0, 2.0, 10.0, 11.0, 12.0],
+        };
+        let s = Sampler::new(&v).unwrap();
+        // (1 + 2) / 2 and (11 + 12) / 2, halved again
+        assert_eq!(s.sample(&Point3::new(1.5, 0.5, 0.0)), Some(6.5));
+        assert_eq!(s.sample(&Point3::new(2.0, 1.0, 0.0)), Some(12.0));
+        assert_eq!(s.sample(&Point3::new(1.0, 0.5, 0.1)), None);
+    }
+
+    #[test]
+    fn an_empty_volume_or_one_its_data_does_not_fill_has_no_sampler() {
+        let (mut v, _) = linear_volume();
+        let empty = Volume {
+            dims: [0, 5, 4],
+            data: Vec::new(),
+            ..v.clone()
+        };
+        assert!(Sampler::new(&empty).is_none());
+        v.data.pop();
+        assert!(Sampler::new(&v).is_none());
+    }
+
+    #[test]
     fn outside_is_none_and_contains_agrees() {
         let (v, _) = linear_volume();
         let s = Sampler::new(&v).unwrap();
