@@ -22,11 +22,8 @@
 //!   round starts from the stiffening the last one ended with, relaxed one step (divided by
 //!   `STIFFEN`, never below 1): an element that needed it once usually needs it again, and
 //!   each stiffening costs a solve, while a region whose elements no longer fail softens
-//!   again round by round. Measured against every round starting unstiffened (2026-11-30,
-//!   docs/registration.md, "The surface level's stiffening carried from round to round"):
-//!   the CT chain's chain MASD 0.003-0.006 mm lower on average on its development, judged and
-//!   held-out phantoms, and fewer solves (44 → 35 on its development seed 1). Flat
-//!   means a shape quality below `MIN_QUALITY`, or, for an element the level found below it,
+//!   again round by round (docs/registration.md, "The surface level's stiffening carried
+//!   from round to round", has the comparison with unstiffened rounds). Flat means a shape quality below `MIN_QUALITY`, or, for an element the level found below it,
 //!   below nine tenths of what it had at the level's start; and never below the package's
 //!   floors (`mesh::quality`: shape quality and volume against the placed atlas) unless the
 //!   element started there, and then no lower.
@@ -161,7 +158,7 @@ pub fn refine(
         stiffened_nodes: 0,
         stop: RefineStop::Rounds,
     };
-    let Some(system) = Smoothing::new(mesh, n) else {
+    let Some(system) = Smoothing::new(mesh, n, cfg.smoothness) else {
         record.stop = RefineStop::Factorisation;
         return record;
     };
@@ -193,16 +190,7 @@ pub fn refine(
         for s in &mut stiffness {
             *s = (*s / STIFFEN).max(1.0);
         }
-        match admissible_move(
-            mesh,
-            &floors,
-            &system,
-            x,
-            &data,
-            weight,
-            &mut stiffness,
-            cfg.smoothness,
-        ) {
+        match admissible_move(mesh, &floors, &system, x, &data, weight, &mut stiffness) {
             Ok(moved) => {
                 x.copy_from_slice(&moved);
                 record.stiffened_nodes = stiffness.iter().filter(|s| **s > 1.0).count();
@@ -252,7 +240,6 @@ fn relative(area: &[f64]) -> Vec<f64> {
 /// element's nodes give up their own offsets and their edges stiffen, and the round is solved
 /// again, up to [`MAX_STIFFENINGS`] times. Returns the moved nodes; `stiffness` is left as the
 /// admissible move had it.
-#[allow(clippy::too_many_arguments)]
 fn admissible_move(
     mesh: &TetMesh,
     floors: &ElementFloors,
@@ -261,11 +248,10 @@ fn admissible_move(
     data: &[Vector3<f64>],
     mut weight: Vec<f64>,
     stiffness: &mut [f64],
-    smoothness: f64,
 ) -> Result<Vec<Point3<f64>>, RefineStop> {
     for _ in 0..=MAX_STIFFENINGS {
         let u = system
-            .solve(data, &weight, stiffness, smoothness)
+            .solve(data, &weight, stiffness)
             .ok_or(RefineStop::Factorisation)?;
         let trial: Vec<Point3<f64>> = x.iter().zip(&u).map(|(p, d)| p + d).collect();
         let failing = floors.failing(&trial);
@@ -282,20 +268,26 @@ fn admissible_move(
     Err(RefineStop::ElementGuard)
 }
 
-/// The smoothing system of one mesh: its edges and the symbolic Cholesky factorisation of
-/// their pattern, computed once and reused by every solve of the level.
+/// The smoothing system of one mesh: its edges, the level's smoothness weight and the
+/// symbolic Cholesky factorisation of their pattern, computed once and reused by every solve
+/// of the level.
 struct Smoothing {
     edges: Vec<(u32, u32)>,
+    smoothness: f64,
     symbolic: SymbolicLlt<usize>,
 }
 
 impl Smoothing {
     /// `None` if the pattern cannot be analysed.
-    fn new(mesh: &TetMesh, n: usize) -> Option<Smoothing> {
+    fn new(mesh: &TetMesh, n: usize, smoothness: f64) -> Option<Smoothing> {
         let edges = tet_edges(mesh, n);
-        let matrix = Self::matrix(&edges, &vec![1.0; n], &vec![1.0; n], 1.0)?;
+        let matrix = Self::matrix(&edges, &vec![1.0; n], &vec![1.0; n], smoothness)?;
         let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).ok()?;
-        Some(Smoothing { edges, symbolic })
+        Some(Smoothing {
+            edges,
+            smoothness,
+            symbolic,
+        })
     }
 
     /// The lower triangle of diag(w) + smoothness · L, L the graph Laplacian of the edges
@@ -334,10 +326,9 @@ impl Smoothing {
         data: &[Vector3<f64>],
         weight: &[f64],
         stiffness: &[f64],
-        smoothness: f64,
     ) -> Option<Vec<Vector3<f64>>> {
         let n = data.len();
-        let matrix = Self::matrix(&self.edges, weight, stiffness, smoothness)?;
+        let matrix = Self::matrix(&self.edges, weight, stiffness, self.smoothness)?;
         let mut rhs = Mat::<f64>::from_fn(n, 3, |v, c| weight[v] * data[v][c]);
         {
             let _clean = DenseKernels::parallel();
