@@ -519,6 +519,107 @@ fn a_varied_chain_is_the_chain_mapped_by_the_recorded_variation() {
     );
 }
 
+/// `phantom --vary-articulation`: each ossicle of the case's truth is the same ossicle of the
+/// chain imaged as it is, moved rigidly; the stapes against the incus by the angle truth.json
+/// records, the malleus likewise; the umbo-IMJ and IMJ-ISJ distances stay and the seed's other
+/// draws are the same seed's without it. A fused chain and `--vary-shape` with it are refused.
+/// The atlas's own bones stand in for a real chain, so this needs no shared data.
+#[test]
+fn an_articulated_chain_turns_its_stapes_and_malleus_about_their_joints() {
+    let tmp = tempfile::tempdir().unwrap();
+    let exp = tmp.path().join("exp");
+    run_ok(&["atlas", "export", s(&exp), "--quiet"]);
+    let make = |name: &str, extra: &[&str]| -> (PathBuf, Value) {
+        let out = tmp.path().join(name);
+        let mut args = vec!["phantom", "--out", s(&out), "--seed", "1103"];
+        args.extend_from_slice(&["--anatomy", s(&exp)]);
+        args.extend_from_slice(extra);
+        args.push("--quiet");
+        run_ok(&args);
+        let case = out.join("case-001");
+        let truth =
+            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap())
+                .unwrap();
+        (case, truth)
+    };
+    let (plain, plain_truth) = make("plain", &[]);
+    let (turned, truth) = make("turned", &["--vary-articulation"]);
+    assert!(plain_truth["anatomy"].get("articulation").is_none());
+    for field in ["side", "cavity", "imaging"] {
+        assert_eq!(truth[field], plain_truth[field], "{field}");
+    }
+    assert_eq!(
+        truth["image"]["spacing_mm"],
+        plain_truth["image"]["spacing_mm"]
+    );
+
+    // each ossicle's rigid motion from the plain case to the turned one (the same vertices)
+    let vertices = |case: &Path, part: &str| {
+        read_ply(&case.join(format!("segmentation/{part}.ply")))
+            .unwrap()
+            .0
+            .vertices
+    };
+    let motion = |part: &str| {
+        let (a, b) = (vertices(&plain, part), vertices(&turned, part));
+        let fit = otoatlas::register::rigid::fit_similarity(&a, &b, false).unwrap();
+        assert!(
+            fit.rms_mm < 1e-6,
+            "{part} did not move rigidly: {}",
+            fit.rms_mm
+        );
+        fit.transform.rotation_matrix()
+    };
+    let incus = motion("incus");
+    let articulation = &truth["anatomy"]["articulation"];
+    for part in ["malleus", "stapes"] {
+        let relative = incus.transpose() * motion(part);
+        let angle = nalgebra::Rotation3::from_matrix_unchecked(relative)
+            .angle()
+            .to_degrees();
+        let recorded = articulation[part]["angle_deg"].as_f64().unwrap();
+        assert!(
+            (angle - recorded).abs() < 1e-3,
+            "{part}: turned {angle:.4} degrees against the incus, recorded {recorded:.4}"
+        );
+    }
+    assert!(
+        articulation["stapes"]["angle_deg"].as_f64().unwrap() > 10.0,
+        "seed 1103 hardly turns the stapes: {articulation}"
+    );
+    let distance = |t: &Value, a: &str, b: &str| {
+        let p = |n: &str| Vector3::from_fn(|i, _| t["landmarks"][n][i].as_f64().unwrap());
+        (p(a) - p(b)).norm()
+    };
+    for (a, b) in [
+        ("umbo", "incudomalleolar"),
+        ("incudomalleolar", "incudostapedial"),
+    ] {
+        let (got, plain) = (distance(&truth, a, b), distance(&plain_truth, a, b));
+        assert!((got - plain).abs() < 1e-6, "{a}-{b}: {got} mm, {plain} mm");
+    }
+
+    let refused = |extra: &[&str], chain: &Path| {
+        let out = tmp.path().join("refused");
+        let mut args = vec!["phantom", "--out", s(&out), "--anatomy", s(chain)];
+        args.extend_from_slice(extra);
+        let out = otoatlas(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let both = refused(&["--vary-articulation", "--vary-shape"], &exp);
+    assert!(both.contains("cannot be used with"), "{both}");
+    let fused = tmp.path().join("fused");
+    std::fs::create_dir_all(&fused).unwrap();
+    std::fs::copy(exp.join("surfaces/malleus.ply"), fused.join("chain.ply")).unwrap();
+    std::fs::copy(exp.join("landmarks.json"), fused.join("landmarks.json")).unwrap();
+    let message = refused(&["--vary-articulation"], &fused);
+    assert!(
+        message.contains("one fused surface") && message.contains("--vary-articulation"),
+        "{message}"
+    );
+}
+
 /// Enclosed volume of a PLY surface (outward triangles give a positive volume).
 fn surface_volume(path: &Path) -> f64 {
     let (mesh, _) = otoatlas::mesh::io::ply::read_ply(path).unwrap();

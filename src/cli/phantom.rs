@@ -28,6 +28,7 @@ Examples:
   otoatlas phantom --out /tmp/cases --cases 1 --seed 7 --spacing 0.2 --side left --artefacts
   otoatlas phantom --out real --cases 4 --seed 1 --anatomy CHAIN_DIR --blur 0.3
   otoatlas phantom --out varied --cases 16 --seed 701 --anatomy CHAIN_DIR --vary-shape
+  otoatlas phantom --out turned --cases 16 --seed 1101 --anatomy CHAIN_DIR --vary-articulation
 
 --anatomy CHAIN_DIR holds malleus, incus and stapes surfaces (or one fused chain.ply;
 .ply, .stl or .obj, in the folder or its surfaces/) and a landmark file that says the side
@@ -35,7 +36,9 @@ Examples:
 other one, and the eardrum, canal, cavity and oval window come from the atlas around it.
 --vary-shape gives each case its own linear variation of the chain's shape (about its
 centroid, landmarks alike), drawn from the seed apart from the case's other draws: a few real
-chains give a development set of many."
+chains give a development set of many. --vary-articulation instead turns each case's stapes
+about the ISJ landmark (up to 25 degrees) and malleus about the IMJ landmark (up to 8), for a
+chain whose ossicles are apart."
 )]
 pub struct PhantomArgs {
     /// Folder the case folders are written into (created if needed).
@@ -69,6 +72,11 @@ pub struct PhantomArgs {
     /// directions and sheared by up to 0.12 (truth.json's anatomy.variation).
     #[arg(long, requires = "anatomy")]
     pub vary_shape: bool,
+    /// Vary the real chain's articulation per case: the stapes turned about the ISJ landmark
+    /// by up to 25 degrees, the malleus about the IMJ landmark by up to 8, each about a random
+    /// axis (truth.json's anatomy.articulation); the chain's ossicles must be apart.
+    #[arg(long, requires = "anatomy", conflicts_with = "vary_shape")]
+    pub vary_articulation: bool,
     /// Print machine-readable JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -126,10 +134,10 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
         .transpose()
         .map_err(PhantomError::from)?
         .map(|chain| {
-            let shape = if args.vary_shape {
-                ChainShape::Varied
-            } else {
-                ChainShape::AsGiven
+            let shape = match (args.vary_shape, args.vary_articulation) {
+                (true, _) => ChainShape::Varied,
+                (_, true) => ChainShape::Articulated,
+                _ => ChainShape::AsGiven,
             };
             ChainPhantoms::new(chain, shape)
         });

@@ -13,6 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use super::chain_articulation::ChainArticulation;
 use super::chain_variation::ChainVariation;
 use super::draws::uniform_rotation;
 use super::imaging::{Grid, ImagingParams, render};
@@ -256,17 +257,21 @@ pub fn generate_case(seed: u64, options: &PhantomOptions) -> Result<PhantomCase,
     Ok(made)
 }
 
-/// Whether each case images the real chain as it is or a seeded variation of its shape.
+/// Whether each case images the real chain as it is, a seeded variation of its shape or a
+/// seeded articulation of its ossicles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ChainShape {
     AsGiven,
     /// Per case, the chain stretched and sheared by [`ChainVariation::draw`] of its seed.
     Varied,
+    /// Per case, the malleus and the stapes turned about their joints by
+    /// [`ChainArticulation::draw`] of its seed (a chain with its ossicles apart).
+    Articulated,
 }
 
 /// A real chain to make phantoms of: its placement in the atlas frame (landmark fit and ICP,
-/// the same for every case of one side) is made once per side, when first needed; a varied
-/// chain is placed anew for every case.
+/// the same for every case of one side) is made once per side, when first needed; a varied or
+/// articulated chain is placed anew for every case.
 pub struct ChainPhantoms {
     chain: ChainAnatomy,
     shape: ChainShape,
@@ -289,7 +294,7 @@ impl ChainPhantoms {
             Side::Right => 0,
             Side::Left => 1,
         }];
-        // as given, each side is placed once; varied, each case anew
+        // as given, each side is placed once; varied or articulated, each case anew
         let placed = match slot.take() {
             Some(placed) if self.shape == ChainShape::AsGiven => placed,
             _ => {
@@ -298,6 +303,9 @@ impl ChainPhantoms {
                     ChainShape::Varied => self
                         .chain
                         .varied(ChainVariation::draw(seed, self.chain.centroid())),
+                    ChainShape::Articulated => self
+                        .chain
+                        .articulated(ChainArticulation::draw(seed, &self.chain.landmarks))?,
                 };
                 let mirrored = side != chain.side;
                 let chain = if mirrored { chain.mirrored() } else { chain };
@@ -313,7 +321,7 @@ impl ChainPhantoms {
 /// Generates the case of `seed` whose ossicles are the real chain of `chains` (mirrored to the
 /// side drawn or asked for): no ossicle motions, shape detail, scale or deformation of its own
 /// (its size is its own), only pose, side, imaging and pick noise are drawn, and the chain's
-/// shape variation when `chains` varies it.
+/// shape variation or articulation when `chains` asks for it.
 pub fn generate_chain_case(
     seed: u64,
     options: &PhantomOptions,

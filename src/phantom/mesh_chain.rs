@@ -13,15 +13,16 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::chain_articulation::{ChainArticulation, OssicleTurn};
 use super::chain_variation::ChainVariation;
 use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
 use super::truth::{ChainPlacement, ossicle_surfaces};
 use super::variability::Ossicle;
-use crate::atlas::sdf::Disc;
+use crate::atlas::sdf::{Disc, Frame};
 use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
 use crate::ear::read_landmarks;
@@ -73,6 +74,8 @@ pub struct ChainAnatomy {
     pub side: Side,
     /// The shape variation applied to the chain as read, if any.
     pub variation: Option<ChainVariation>,
+    /// The articulation applied to the chain as read, if any.
+    pub articulation: Option<ChainArticulation>,
 }
 
 /// Errors reading a chain folder.
@@ -96,6 +99,10 @@ pub enum ChainError {
         "{path}: the file does not say the ear's side; expected \"side\": \"left\" or \"right\""
     )]
     NoSide { path: PathBuf },
+    #[error(
+        "--anatomy {name}: the chain is one fused surface, so its ossicles cannot be turned apart; --vary-articulation expects malleus, incus and stapes surfaces"
+    )]
+    FusedArticulation { name: String },
     #[error("{0}")]
     Read(String),
     #[error("{path}: {what}")]
@@ -184,6 +191,7 @@ impl ChainAnatomy {
             landmarks: file.landmarks,
             side,
             variation: None,
+            articulation: None,
         })
     }
 
@@ -205,6 +213,29 @@ impl ChainAnatomy {
         let mut varied = self.mapped(variation.mapping(), false);
         varied.variation = Some(variation);
         varied
+    }
+
+    /// The chain with the malleus and the stapes turned by `articulation` about their joints'
+    /// landmarks (the umbo landmark with the malleus); a fused chain cannot be.
+    pub fn articulated(&self, articulation: ChainArticulation) -> Result<ChainAnatomy, ChainError> {
+        let mut turned = self.clone();
+        for (kind, mesh) in &mut turned.parts {
+            let turn = match kind {
+                PartKind::Chain => {
+                    return Err(ChainError::FusedArticulation {
+                        name: self.name.clone(),
+                    });
+                }
+                PartKind::Ossicle(Ossicle::Malleus) => &articulation.malleus,
+                PartKind::Ossicle(Ossicle::Stapes) => &articulation.stapes,
+                PartKind::Ossicle(Ossicle::Incus) => continue,
+            };
+            let map = turn.mapping();
+            mesh.vertices.iter_mut().for_each(|p| *p = map(p));
+        }
+        turned.landmarks.umbo = articulation.malleus.mapping()(&self.landmarks.umbo);
+        turned.articulation = Some(articulation);
+        Ok(turned)
     }
 
     /// The same chain as the other ear: mirrored in x = 0 (triangles turned to stay outward).
@@ -236,6 +267,7 @@ impl ChainAnatomy {
             landmarks: Landmarks::from_points(self.landmarks.points().map(|p| map(&p))),
             side: self.side,
             variation: self.variation.clone(),
+            articulation: self.articulation.clone(),
         }
     }
 }
@@ -293,7 +325,11 @@ impl MeshChain {
             })
             .collect::<Result<Vec<_>, ChainError>>()?;
         let atlas_fp = plain.anatomy().footplate().clone();
-        let footplate = oval_window(&atlas_fp, &meshes);
+        let turned_fp = match &chain.articulation {
+            Some(a) => turned_disc(&atlas_fp, &a.stapes, mirrored, &to_atlas),
+            None => atlas_fp.clone(),
+        };
+        let footplate = oval_window(&turned_fp, &meshes);
         let placement = ChainPlacement {
             name: chain.name.clone(),
             parts: chain.parts.iter().map(|(k, _)| k.name()).collect(),
@@ -303,6 +339,7 @@ impl MeshChain {
             icp_mean_mm,
             footplate_shift_mm: (footplate.center - atlas_fp.center).norm(),
             variation: chain.variation.clone(),
+            articulation: chain.articulation.clone(),
         };
         Ok(MeshChain {
             atlas: plain,
@@ -421,6 +458,30 @@ fn icp(
 /// medial-most vertex within its outline (within 1 mm of the disc), and in its plane to the
 /// centroid of the chain's vertices on that medial face (within 0.2 mm of it). The atlas's
 /// disc when the chain has no vertex there.
+/// The atlas's footplate disc `fp` turned as the chain's stapes was (`turn`, in the chain's
+/// own frame, mirrored in x = 0 when the chain was), so that the oval window keeps its place
+/// around the turned footplate; `to_atlas` maps the chain's frame into the atlas's.
+fn turned_disc(
+    fp: &Disc,
+    turn: &OssicleTurn,
+    mirrored: bool,
+    to_atlas: &SimilarityTransform,
+) -> Disc {
+    let mirror = Matrix3::from_diagonal(&Vector3::new(if mirrored { -1.0 } else { 1.0 }, 1.0, 1.0));
+    let q = to_atlas.rotation_matrix();
+    let rotation = q * mirror * turn.rotation().matrix() * mirror * q.transpose();
+    let pivot = to_atlas.apply(&Point3::from(mirror * Vector3::from(turn.pivot)));
+    Disc {
+        center: pivot + rotation * (fp.center - pivot),
+        frame: Frame {
+            e1: rotation * fp.frame.e1,
+            e2: rotation * fp.frame.e2,
+            e3: rotation * fp.frame.e3,
+        },
+        ..fp.clone()
+    }
+}
+
 fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
     let local: Vec<Vector3<f64>> = meshes
         .iter()
@@ -443,5 +504,58 @@ fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
     Disc {
         center: fp.center + shift,
         ..fp.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::phantom::chain_articulation::OssicleTurn;
+
+    /// The turned disc is where the atlas's disc is carried by the chain's turn seen in the
+    /// atlas frame: for any chain point x, the turned disc's distance at the atlas image of the
+    /// turned x is the disc's at the atlas image of x, mirrored or not.
+    #[test]
+    fn the_oval_window_turns_with_the_stapes() {
+        let fp = Disc {
+            center: Point3::new(0.5, -1.0, 2.0),
+            frame: Frame::from_axes(Vector3::new(1.0, 0.2, 0.0), Vector3::new(0.0, 1.0, 0.3))
+                .unwrap(),
+            semi_axes: [1.4, 0.6],
+            thickness: 0.3,
+        };
+        let turn = OssicleTurn {
+            axis: Vector3::new(0.3, -0.5, 0.8).normalize().into(),
+            angle_deg: 23.0,
+            pivot: [1.0, 2.0, -1.5],
+        };
+        let rotation = nalgebra::Rotation3::from_euler_angles(0.4, -0.7, 1.1);
+        let to_atlas =
+            SimilarityTransform::new(*rotation.matrix(), Vector3::new(3.0, -2.0, 0.5), 0.9);
+        for mirrored in [false, true] {
+            let turned = turned_disc(&fp, &turn, mirrored, &to_atlas);
+            let mirror = |p: Point3<f64>| {
+                if mirrored {
+                    Point3::new(-p.x, p.y, p.z)
+                } else {
+                    p
+                }
+            };
+            let own_frame = |p: Point3<f64>| mirror(p); // the mirror is its own inverse
+            for k in 0..40 {
+                let t = k as f64;
+                // chain points near the disc, in the (possibly mirrored) chain frame
+                let atlas_point = fp.center
+                    + Vector3::new((0.7 * t).sin(), (1.3 * t).cos(), (0.37 * t).sin()) * 1.5;
+                let chain_point = to_atlas.inverse().apply(&atlas_point);
+                let turned_chain = mirror(turn.mapping()(&own_frame(chain_point)));
+                let turned_atlas = to_atlas.apply(&turned_chain);
+                let (before, after) = (fp.distance(&atlas_point), turned.distance(&turned_atlas));
+                assert!(
+                    (before - after).abs() < 1e-9,
+                    "mirrored {mirrored}, point {k}: {before} -> {after}"
+                );
+            }
+        }
     }
 }

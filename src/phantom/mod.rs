@@ -4,6 +4,7 @@
 //! their ground truth. See docs/phantom.md.
 
 pub mod case_writer;
+pub mod chain_articulation;
 pub mod chain_variation;
 pub mod draws;
 pub mod drum;

@@ -6,6 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::chain_articulation::ChainArticulation;
 use super::chain_variation::ChainVariation;
 use super::imaging::ImagingParams;
 use super::patient::PatientAnatomy;
@@ -231,6 +232,10 @@ pub struct ChainPlacement {
     /// mirroring; absent when the chain was imaged as it is.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub variation: Option<ChainVariation>,
+    /// The chain's articulation (`phantom --vary-articulation`), in the chain's own frame
+    /// before mirroring; absent when the ossicles were imaged as they are.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub articulation: Option<ChainArticulation>,
 }
 
 #[cfg(test)]
