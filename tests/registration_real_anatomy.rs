@@ -620,6 +620,75 @@ fn an_articulated_chain_turns_its_stapes_and_malleus_about_their_joints() {
     );
 }
 
+/// SOFA's chain with its stapes turned 24° about the ISJ and its malleus 1° about the IMJ
+/// (`phantom --vary-articulation`, seed 1205 of the README's judged set, "Chains articulated
+/// at random"; nothing was chosen on it): the stapes's pose is found and the chain meets the
+/// targets. Measured 2026-11-30: chain MASD 0.157 -> 0.048 mm (0.28 voxel), HD95 1.07 voxels,
+/// the stapes 0.090 mm from its truth.
+#[test]
+#[ignore = "heavy: one real-chain phantom registered, 6 s in debug; scripts/test.sh runs it"]
+fn a_chain_with_its_stapes_turned_registers_within_the_targets() {
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let sofa = sofa_chain(&anatomy, tmp.path());
+    let cases = tmp.path().join("cases");
+    run_ok(&[
+        "phantom",
+        "--out",
+        s(&cases),
+        "--seed",
+        "1205",
+        "--anatomy",
+        s(&sofa),
+        "--vary-articulation",
+        "--quiet",
+    ]);
+    let case = cases.join("case-001");
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap()).unwrap();
+    let turned = truth["anatomy"]["articulation"]["stapes"]["angle_deg"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        turned > 20.0,
+        "seed 1205 turns the stapes by {turned:.1} degrees"
+    );
+    let voxel = truth["image"]["spacing_mm"][0].as_f64().unwrap();
+    let out = tmp.path().join("out");
+    let config = common::config_without_validation(tmp.path());
+    let (code, m) = otoatlas_json(&["run", s(&case), "--out", s(&out), "--config", s(&config)]);
+    assert_eq!(code, 0, "{m}");
+    let (rigid, _) = chain_scores(&m, "rigid");
+    let (masd, hd95) = chain_scores(&m, "registered");
+    let stapes = m["scores"]["stapes"]["registered"]["masd"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "SOFA chain, stapes turned {turned:.1} degrees: chain MASD {rigid:.3} -> {masd:.3} mm ({:.2} voxel), HD95 {:.2} voxels, stapes {stapes:.3} mm",
+        masd / voxel,
+        hd95 / voxel
+    );
+    assert!(
+        masd <= 0.5 * voxel,
+        "chain MASD {masd:.3} mm at {voxel} mm voxels"
+    );
+    assert!(
+        hd95 <= 2.0 * voxel,
+        "chain HD95 {hd95:.3} mm at {voxel} mm voxels"
+    );
+    assert!(
+        masd <= (1.0 - MIN_IMPROVEMENT) * rigid,
+        "{rigid:.3} -> {masd:.3} mm"
+    );
+    // a regression bound at the figure reached (0.090 mm)
+    assert!(
+        stapes <= 0.12,
+        "the stapes ends {stapes:.3} mm from its truth"
+    );
+}
+
 /// Enclosed volume of a PLY surface (outward triangles give a positive volume).
 fn surface_volume(path: &Path) -> f64 {
     let (mesh, _) = otoatlas::mesh::io::ply::read_ply(path).unwrap();
