@@ -426,6 +426,43 @@ fn a_mirrored_chain_is_the_other_ear_with_the_same_truth_volume() {
     assert!(volumes[0] > 0.0);
 }
 
+/// The case of `seed` (with the phantom flags `extra`) around the chain `chain`, written to
+/// `tmp/name`: its folder and its truth.json.
+fn chain_case(
+    tmp: &Path,
+    chain: &Path,
+    name: &str,
+    seed: &str,
+    extra: &[&str],
+) -> (PathBuf, Value) {
+    let out = tmp.join(name);
+    let mut args = vec![
+        "phantom",
+        "--out",
+        s(&out),
+        "--seed",
+        seed,
+        "--anatomy",
+        s(chain),
+    ];
+    args.extend_from_slice(extra);
+    args.push("--quiet");
+    run_ok(&args);
+    let case = out.join("case-001");
+    let truth =
+        serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap()).unwrap();
+    (case, truth)
+}
+
+/// A chain's variation or articulation comes from its own random stream: the seed's side,
+/// cavity, imaging and spacing are those of the same seed without it.
+fn assert_same_draws(truth: &Value, plain: &Value) {
+    for field in ["side", "cavity", "imaging"] {
+        assert_eq!(truth[field], plain[field], "{field}");
+    }
+    assert_eq!(truth["image"]["spacing_mm"], plain["image"]["spacing_mm"]);
+}
+
 /// `phantom --vary-shape`: the case's truth is the chain mapped by the variation truth.json
 /// records (its volume times the map's determinant, its landmark triangle the mapped one), and
 /// the seed's other draws are those of the same seed without it. The atlas's own bones stand
@@ -435,36 +472,10 @@ fn a_varied_chain_is_the_chain_mapped_by_the_recorded_variation() {
     let tmp = tempfile::tempdir().unwrap();
     let exp = tmp.path().join("exp");
     run_ok(&["atlas", "export", s(&exp), "--quiet"]);
-    let make = |name: &str, extra: &[&str]| -> (PathBuf, Value) {
-        let out = tmp.path().join(name);
-        let mut args = vec![
-            "phantom",
-            "--out",
-            s(&out),
-            "--seed",
-            "901",
-            "--anatomy",
-            s(&exp),
-        ];
-        args.extend_from_slice(extra);
-        args.push("--quiet");
-        run_ok(&args);
-        let case = out.join("case-001");
-        let truth =
-            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap())
-                .unwrap();
-        (case, truth)
-    };
-    let (plain, plain_truth) = make("plain", &[]);
-    let (varied, truth) = make("varied", &["--vary-shape"]);
+    let (plain, plain_truth) = chain_case(tmp.path(), &exp, "plain", "901", &[]);
+    let (varied, truth) = chain_case(tmp.path(), &exp, "varied", "901", &["--vary-shape"]);
     assert!(plain_truth["anatomy"].get("variation").is_none());
-    for field in ["side", "cavity", "imaging"] {
-        assert_eq!(truth[field], plain_truth[field], "{field}");
-    }
-    assert_eq!(
-        truth["image"]["spacing_mm"],
-        plain_truth["image"]["spacing_mm"]
-    );
+    assert_same_draws(&truth, &plain_truth);
     assert_eq!(truth["pose"]["rotation"], plain_truth["pose"]["rotation"]);
 
     let variation = &truth["anatomy"]["variation"];
@@ -529,29 +540,10 @@ fn an_articulated_chain_turns_its_stapes_and_malleus_about_their_joints() {
     let tmp = tempfile::tempdir().unwrap();
     let exp = tmp.path().join("exp");
     run_ok(&["atlas", "export", s(&exp), "--quiet"]);
-    let make = |name: &str, extra: &[&str]| -> (PathBuf, Value) {
-        let out = tmp.path().join(name);
-        let mut args = vec!["phantom", "--out", s(&out), "--seed", "1103"];
-        args.extend_from_slice(&["--anatomy", s(&exp)]);
-        args.extend_from_slice(extra);
-        args.push("--quiet");
-        run_ok(&args);
-        let case = out.join("case-001");
-        let truth =
-            serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap())
-                .unwrap();
-        (case, truth)
-    };
-    let (plain, plain_truth) = make("plain", &[]);
-    let (turned, truth) = make("turned", &["--vary-articulation"]);
+    let (plain, plain_truth) = chain_case(tmp.path(), &exp, "plain", "1103", &[]);
+    let (turned, truth) = chain_case(tmp.path(), &exp, "turned", "1103", &["--vary-articulation"]);
     assert!(plain_truth["anatomy"].get("articulation").is_none());
-    for field in ["side", "cavity", "imaging"] {
-        assert_eq!(truth[field], plain_truth[field], "{field}");
-    }
-    assert_eq!(
-        truth["image"]["spacing_mm"],
-        plain_truth["image"]["spacing_mm"]
-    );
+    assert_same_draws(&truth, &plain_truth);
 
     // each ossicle's rigid motion from the plain case to the turned one (the same vertices)
     let vertices = |case: &Path, part: &str| {
@@ -633,21 +625,7 @@ fn a_chain_with_its_stapes_turned_registers_within_the_targets() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let sofa = sofa_chain(&anatomy, tmp.path());
-    let cases = tmp.path().join("cases");
-    run_ok(&[
-        "phantom",
-        "--out",
-        s(&cases),
-        "--seed",
-        "1205",
-        "--anatomy",
-        s(&sofa),
-        "--vary-articulation",
-        "--quiet",
-    ]);
-    let case = cases.join("case-001");
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(case.join("truth.json")).unwrap()).unwrap();
+    let (case, truth) = chain_case(tmp.path(), &sofa, "cases", "1205", &["--vary-articulation"]);
     let turned = truth["anatomy"]["articulation"]["stapes"]["angle_deg"]
         .as_f64()
         .unwrap();
