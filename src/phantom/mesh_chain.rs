@@ -454,10 +454,6 @@ fn icp(
     (t, mean)
 }
 
-/// The atlas's footplate disc moved onto the chain's stapes: along its normal to the chain's
-/// medial-most vertex within its outline (within 1 mm of the disc), and in its plane to the
-/// centroid of the chain's vertices on that medial face (within 0.2 mm of it). The atlas's
-/// disc when the chain has no vertex there.
 /// The atlas's footplate disc `fp` turned as the chain's stapes was (`turn`, in the chain's
 /// own frame, mirrored in x = 0 when the chain was), so that the oval window keeps its place
 /// around the turned footplate; `to_atlas` maps the chain's frame into the atlas's.
@@ -482,6 +478,10 @@ fn turned_disc(
     }
 }
 
+/// The atlas's footplate disc moved onto the chain's stapes: along its normal to the chain's
+/// medial-most vertex within its outline (within 1 mm of the disc), and in its plane to the
+/// centroid of the chain's vertices on that medial face (within 0.2 mm of it). The atlas's
+/// disc when the chain has no vertex there.
 fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
     let local: Vec<Vector3<f64>> = meshes
         .iter()
@@ -510,7 +510,6 @@ fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::phantom::chain_articulation::OssicleTurn;
 
     /// The turned disc is where the atlas's disc is carried by the chain's turn seen in the
     /// atlas frame: for any chain point x, the turned disc's distance at the atlas image of the
