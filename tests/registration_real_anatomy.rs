@@ -533,7 +533,8 @@ fn a_varied_chain_is_the_chain_mapped_by_the_recorded_variation() {
 /// `phantom --vary-articulation`: each ossicle of the case's truth is the same ossicle of the
 /// chain imaged as it is, moved rigidly; the stapes against the incus by the angle truth.json
 /// records, the malleus likewise; the umbo-IMJ and IMJ-ISJ distances stay and the seed's other
-/// draws are the same seed's without it. A fused chain and `--vary-shape` with it are refused.
+/// draws are the same seed's without it. A fused chain and `--vary-shape` with it are refused
+/// before anything is written.
 /// The atlas's own bones stand in for a real chain, so this needs no shared data.
 #[test]
 fn an_articulated_chain_turns_its_stapes_and_malleus_about_their_joints() {
@@ -591,12 +592,14 @@ fn an_articulated_chain_turns_its_stapes_and_malleus_about_their_joints() {
         assert!((got - plain).abs() < 1e-6, "{a}-{b}: {got} mm, {plain} mm");
     }
 
+    // refused before anything is written: not even the --out folder is made
     let refused = |extra: &[&str], chain: &Path| {
-        let out = tmp.path().join("refused");
-        let mut args = vec!["phantom", "--out", s(&out), "--anatomy", s(chain)];
+        let dir = tmp.path().join("refused");
+        let mut args = vec!["phantom", "--out", s(&dir), "--anatomy", s(chain)];
         args.extend_from_slice(extra);
         let out = otoatlas(&args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(!dir.exists(), "{args:?} made {}", dir.display());
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
     let both = refused(&["--vary-articulation", "--vary-shape"], &exp);

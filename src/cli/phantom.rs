@@ -127,20 +127,24 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
         blur_mm: args.blur,
     };
     options.check()?;
-    let mut chain = args
+    let chain = args
         .anatomy
         .as_deref()
         .map(ChainAnatomy::load)
         .transpose()
-        .map_err(PhantomError::from)?
-        .map(|chain| {
-            let shape = match (args.vary_shape, args.vary_articulation) {
-                (true, _) => ChainShape::Varied,
-                (_, true) => ChainShape::Articulated,
-                _ => ChainShape::AsGiven,
-            };
-            ChainPhantoms::new(chain, shape)
-        });
+        .map_err(PhantomError::from)?;
+    if let (Some(chain), true) = (&chain, args.vary_articulation) {
+        // before anything is written
+        chain.check_articulable().map_err(PhantomError::from)?;
+    }
+    let mut chain = chain.map(|chain| {
+        let shape = match (args.vary_shape, args.vary_articulation) {
+            (true, _) => ChainShape::Varied,
+            (_, true) => ChainShape::Articulated,
+            _ => ChainShape::AsGiven,
+        };
+        ChainPhantoms::new(chain, shape)
+    });
     check_writable(&args.out)?;
     check_replaceable(&args.out, args.cases)?;
     let bar = progress.task("phantom", u64::from(args.cases));

@@ -215,20 +215,32 @@ impl ChainAnatomy {
         varied
     }
 
+    /// Whether the chain is one fused surface, its ossicles not told apart.
+    pub fn is_fused(&self) -> bool {
+        self.parts.iter().any(|(k, _)| *k == PartKind::Chain)
+    }
+
+    /// Refuses a fused chain, whose ossicles cannot be turned apart
+    /// ([`ChainAnatomy::articulated`]).
+    pub fn check_articulable(&self) -> Result<(), ChainError> {
+        if self.is_fused() {
+            return Err(ChainError::FusedArticulation {
+                name: self.name.clone(),
+            });
+        }
+        Ok(())
+    }
+
     /// The chain with the malleus and the stapes turned by `articulation` about their joints'
     /// landmarks (the umbo landmark with the malleus); a fused chain cannot be.
     pub fn articulated(&self, articulation: ChainArticulation) -> Result<ChainAnatomy, ChainError> {
+        self.check_articulable()?;
         let mut turned = self.clone();
         for (kind, mesh) in &mut turned.parts {
             let turn = match kind {
-                PartKind::Chain => {
-                    return Err(ChainError::FusedArticulation {
-                        name: self.name.clone(),
-                    });
-                }
                 PartKind::Ossicle(Ossicle::Malleus) => &articulation.malleus,
                 PartKind::Ossicle(Ossicle::Stapes) => &articulation.stapes,
-                PartKind::Ossicle(Ossicle::Incus) => continue,
+                PartKind::Ossicle(Ossicle::Incus) | PartKind::Chain => continue,
             };
             let map = turn.mapping();
             mesh.vertices.iter_mut().for_each(|p| *p = map(p));
