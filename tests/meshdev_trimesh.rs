@@ -114,8 +114,7 @@ fn sample_case_ossicles_agree_with_trimesh() {
     };
     for name in ["malleus", "incus", "stapes"] {
         let truth =
-            otoatlas::meshdev::structures::read_surface(&segmentation.join(format!("{name}.ply")))
-                .unwrap();
+            otoatlas::mesh::io::read_surface(&segmentation.join(format!("{name}.ply"))).unwrap();
         let label = &labels
             .iter()
             .find(|s| s.name == name)

@@ -1,5 +1,5 @@
-//! Building an atlas from closed surfaces, one per ossicle (`malleus`, `incus`, `stapes`, each
-//! `.ply`, `.stl` or `.obj`), with the same multi-domain mesher as the default atlas (through
+//! Building an atlas from closed surfaces, one per ossicle (files named for the `malleus`,
+//! `incus` and `stapes`: `.ply`, `.stl`, `.obj` or `.vtu`), with the same multi-domain mesher as the default atlas (through
 //! [`SurfaceDomain`]). Such an atlas has the three bones only: no eardrum membrane (an eardrum
 //! surface is open, so it bounds no volume), no joints, ligaments or tendons, and no node sets
 //! or load surfaces; each bone gets one whole-bone material (see
@@ -13,13 +13,10 @@ use super::import::{landmarks_and_side, tie_landmarks};
 use super::mapping::material_library;
 use super::model::{Atlas, Part, RegionInfo};
 use crate::ear::Side;
+use crate::ear::structure_names;
 use crate::io_util::sha256_hex;
-use crate::mesh::TriMesh;
-use crate::mesh::io::{obj::read_obj, ply::read_ply, stl::read_stl};
+use crate::mesh::io::{read_surface, surface_files};
 use crate::mesh::mesher::{MesherParams, SurfaceDomain, mesh_domain};
-
-/// The surface file extensions read, in the order they are looked for.
-pub const SURFACE_EXTENSIONS: [&str; 3] = ["ply", "stl", "obj"];
 
 /// What to build from.
 #[derive(Debug, Clone, Copy)]
@@ -35,12 +32,16 @@ pub struct SurfaceBuild<'a> {
     pub edge_mm: f64,
 }
 
-/// The one surface file of `bone` in `dir`.
+/// The one surface file in `dir` whose name names `bone` (`malleus.ply`, `01_Malleus.stl`;
+/// [`structure_names`]).
 fn surface_file(dir: &Path, bone: Part) -> Result<PathBuf, AtlasError> {
-    let found: Vec<PathBuf> = SURFACE_EXTENSIONS
-        .iter()
-        .map(|ext| dir.join(format!("{}.{ext}", bone.name())))
-        .filter(|p| p.is_file())
+    let files = surface_files(dir)?;
+    let names = structure_names(&files);
+    let found: Vec<PathBuf> = files
+        .into_iter()
+        .zip(names)
+        .filter(|(_, name)| name == bone.name())
+        .map(|(path, _)| path)
         .collect();
     match found.as_slice() {
         [one] => Ok(one.clone()),
@@ -48,21 +49,12 @@ fn surface_file(dir: &Path, bone: Part) -> Result<PathBuf, AtlasError> {
             dir,
             bone.name(),
             format!(
-                "exactly one closed surface {0}.ply, {0}.stl or {0}.obj",
+                "exactly one closed surface named for the {0} (.ply, .stl, .obj or .vtu: {0}.ply, 01_{0}.stl)",
                 bone.name()
             ),
             format!("{} files", found.len()),
         )),
     }
-}
-
-fn read_surface(path: &Path) -> Result<TriMesh, AtlasError> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    Ok(match ext {
-        "ply" => read_ply(path)?.0,
-        "stl" => read_stl(path)?,
-        _ => read_obj(path)?,
-    })
 }
 
 /// Meshes the three bone surfaces into an atlas.

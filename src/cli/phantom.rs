@@ -133,6 +133,10 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
         .map(ChainAnatomy::load)
         .transpose()
         .map_err(PhantomError::from)?;
+    let notes: Vec<String> = chain.iter().flat_map(|c| c.notes.clone()).collect();
+    for note in &notes {
+        progress.log(&format!("anatomy: {note}"));
+    }
     if let (Some(chain), true) = (&chain, args.vary_articulation) {
         // before anything is written
         chain.check_articulable().map_err(PhantomError::from)?;
@@ -184,6 +188,6 @@ pub fn run(args: &PhantomArgs, progress: &dyn Reporter) -> Result<Report, Error>
     bar.finish(&format!("{} case(s) in {}", args.cases, args.out.display()));
     Ok(Report {
         text,
-        json: json!({ "out": args.out, "cases": cases }),
+        json: json!({ "out": args.out, "cases": cases, "notes": notes }),
     })
 }

@@ -1,10 +1,11 @@
-//! The vocabulary every stage shares about an ear: which side it is, its three landmarks, and
-//! the files they are exchanged in. The atlas carries them, the registration reads and fits
+//! The vocabulary every stage shares about an ear: which side it is, its three landmarks, the
+//! files they are exchanged in, and which structure a surface file's name names. The atlas carries them, the registration reads and fits
 //! them, the phantom and the package write them.
 
 mod files;
 mod landmarks;
 mod side;
+mod structure_names;
 
 pub use files::{
     LandmarkFile, LandmarkFileError, read_landmarks, write_fcsv, write_fcsv_described, write_json,
@@ -12,3 +13,4 @@ pub use files::{
 };
 pub use landmarks::{LandmarkName, Landmarks};
 pub use side::Side;
+pub use structure_names::{file_stem, structure_in_words, structure_names};

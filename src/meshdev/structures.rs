@@ -8,10 +8,11 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use crate::ear::{file_stem, structure_names};
 use crate::image::nifti::is_nifti_path;
 use crate::image::{ImageError, IngestConfig};
 use crate::mesh::TriMesh;
-use crate::mesh::io::{obj, ply, stl, vtu};
+use crate::mesh::io::{read_surface, surface_extension};
 use crate::mesh::isosurface::label_surface;
 use crate::mesh::union::outer_surface;
 
@@ -30,8 +31,6 @@ pub const FUSED_NAMES: [(&str, &[&str]); 2] = [
 pub enum StructuresError {
     #[error("{path}: no such file or folder")]
     NotFound { path: PathBuf },
-    #[error("{path}: not a surface mesh; expected .ply, .stl, .obj or .vtu")]
-    NotASurface { path: PathBuf },
     #[error("{path}: no surface mesh (.ply, .stl, .obj, .vtu) or label map (.nii, .nii.gz) found")]
     NothingToCompare { path: PathBuf },
     #[error("{path}: {source}")]
@@ -80,49 +79,16 @@ pub fn structures_from_labels(
 }
 
 /// Mesh file extensions read as one structure each (named by the file stem).
-const MESH_EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
-
-fn mesh_extension(path: &Path) -> Option<String> {
-    let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
-    MESH_EXTENSIONS.contains(&ext.as_str()).then_some(ext)
-}
-
-/// Reads one surface mesh file (PLY, STL, OBJ, or the triangles of a VTU).
-pub fn read_surface(path: &Path) -> Result<TriMesh, StructuresError> {
-    Ok(match mesh_extension(path).as_deref() {
-        Some("ply") => ply::read_ply(path)?.0,
-        Some("stl") => stl::read_stl(path)?,
-        Some("obj") => obj::read_obj(path)?,
-        Some("vtu") => {
-            let (volume, _) = vtu::read_vtu(path)?;
-            TriMesh {
-                vertices: volume.tets.nodes,
-                triangles: volume.triangles,
-            }
-        }
-        _ => {
-            return Err(StructuresError::NotASurface {
-                path: path.to_path_buf(),
-            });
-        }
-    })
-}
-
-/// The structures at `path`: a mesh file (one structure, named by its stem), a label map
-/// (one per label of `labels`), or a folder of such files (meshes preferred; a label map is
-/// used when the folder holds no mesh).
+/// The structures at `path`: a mesh file (one structure), a label map (one per label of
+/// `labels`), or a folder of such files (meshes preferred; a label map is used when the
+/// folder holds no mesh). A mesh is named by the structure its file name names
+/// ([`structure_names`]: `Malleus.stl`, `01_Malleus.ply` and `Segmentation_Malleus.obj` are
+/// the malleus), else by its stem.
 pub fn load_structures(
     path: &Path,
     labels: &[(u16, String)],
     ingest: &IngestConfig,
 ) -> Result<Vec<Structure>, StructuresError> {
-    let stem = |p: &Path| {
-        let name = p
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        name.split('.').next().unwrap_or_default().to_string()
-    };
     if !path.exists() {
         return Err(StructuresError::NotFound {
             path: path.to_path_buf(),
@@ -133,8 +99,9 @@ pub fn load_structures(
             let image = crate::image::load(path, None, ingest)?;
             return Ok(structures_from_labels(&image.volume, labels));
         }
+        let names = structure_names(&[path.to_path_buf()]);
         return Ok(vec![Structure {
-            name: stem(path),
+            name: names.into_iter().next().unwrap_or_else(|| file_stem(path)),
             mesh: read_surface(path)?,
         }]);
     }
@@ -147,18 +114,21 @@ pub fn load_structures(
         .filter(|p| p.is_file())
         .collect();
     entries.sort();
-    let meshes: Vec<&std::path::PathBuf> = entries
+    let meshes: Vec<PathBuf> = entries
         .iter()
-        .filter(|p| mesh_extension(p).is_some())
+        .filter(|p| surface_extension(p).is_some())
+        .cloned()
         .collect();
     if !meshes.is_empty() {
+        let names = structure_names(&meshes);
         // each file parsed on its own thread: a segmentation's surfaces are a few MB each
         return meshes
             .into_par_iter()
-            .map(|p| {
+            .zip(names)
+            .map(|(p, name)| {
                 Ok(Structure {
-                    name: stem(p),
-                    mesh: read_surface(p)?,
+                    name,
+                    mesh: read_surface(&p)?,
                 })
             })
             .collect();
@@ -344,6 +314,51 @@ mod tests {
                 .contains("whole number")
         );
         assert!(parse_label_table("3").unwrap_err().contains("LABEL=NAME"));
+    }
+
+    /// A segmentation exported by another tool: each mesh is the structure its file name
+    /// names, a name that names none keeps its stem, and a single file is named alike.
+    #[test]
+    fn a_segmentation_folder_names_its_structures_by_their_file_names() {
+        let tmp = tempfile::tempdir().unwrap();
+        let ball = |r| shapes::icosphere(Point3::origin(), r, 1);
+        let files = [
+            ("Segmentation_Malleus.stl", 1.0),
+            ("Incus.ply", 1.1),
+            ("Segment_3.obj", 0.5),
+            ("Segmentation_Tympanic membrane.ply", 2.0),
+        ];
+        for (file, r) in files {
+            let path = tmp.path().join(file);
+            let mesh = ball(r);
+            match surface_extension(&path).as_deref() {
+                Some("stl") => crate::mesh::io::stl::write_stl(
+                    &path,
+                    &mesh,
+                    crate::mesh::io::stl::StlEncoding::Ascii,
+                ),
+                Some("ply") => crate::mesh::io::ply::write_ply(&path, &mesh, &Default::default()),
+                _ => crate::mesh::io::obj::write_obj(&path, &mesh),
+            }
+            .unwrap();
+        }
+        let ingest = IngestConfig {
+            max_file_mib: 64.0,
+            max_volume_mib: 64.0,
+            slice_gap_tolerance: 0.2,
+            orientation_tolerance: 1e-3,
+        };
+        let mut found: Vec<(String, usize)> = load_structures(tmp.path(), &[], &ingest)
+            .unwrap()
+            .into_iter()
+            .map(|s| (s.name, s.mesh.triangles.len()))
+            .collect();
+        found.sort();
+        let names: Vec<&str> = found.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["Segment_3", "eardrum", "incus", "malleus"]);
+        assert!(found.iter().all(|(_, t)| *t == 80));
+        let one = load_structures(&tmp.path().join("Incus.ply"), &[], &ingest).unwrap();
+        assert_eq!(one[0].name, "incus");
     }
 
     #[test]

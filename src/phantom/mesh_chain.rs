@@ -25,10 +25,10 @@ use super::variability::Ossicle;
 use crate::atlas::sdf::{Disc, Frame};
 use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
-use crate::ear::read_landmarks;
+use crate::ear::{file_stem, read_landmarks, structure_names};
 use crate::mesh::TriMesh;
+use crate::mesh::io::{read_surface, surface_extension, surface_files};
 use crate::mesh::spatial::{Bvh, SignedSurface};
-use crate::meshdev::structures::read_surface;
 use crate::register::rigid::{SimilarityTransform, fit_similarity};
 
 /// Surface file names per part, tried in this order (PLY, STL, OBJ).
@@ -76,15 +76,22 @@ pub struct ChainAnatomy {
     pub variation: Option<ChainVariation>,
     /// The articulation applied to the chain as read, if any.
     pub articulation: Option<ChainArticulation>,
+    /// How the folder was read, for the user: a surface taken by a name other than the
+    /// part's own, a surface turned outward.
+    pub notes: Vec<String>,
 }
 
 /// Errors reading a chain folder.
 #[derive(Debug, thiserror::Error)]
 pub enum ChainError {
     #[error(
-        "--anatomy {dir}: no chain surfaces; expected malleus, incus and stapes (or one fused chain.*) as .ply, .stl or .obj, in the folder or in its surfaces/"
+        "--anatomy {dir}: no chain surfaces{found}; expected malleus, incus and stapes (or one fused chain or ossicles) as .ply, .stl or .obj files whose names say which (malleus.ply, 01_Malleus.stl, Segmentation_Stapes.obj), in the folder or in its surfaces/"
     )]
-    NoSurfaces { dir: PathBuf },
+    NoSurfaces {
+        dir: PathBuf,
+        /// The surface files found that name no ossicle (", found a.stl, b.stl"), if any.
+        found: String,
+    },
     #[error(
         "--anatomy {dir}: found {found} but not {missing}; expected all three ossicles or one fused chain"
     )]
@@ -109,22 +116,45 @@ pub enum ChainError {
     Surface { path: PathBuf, what: String },
 }
 
-fn find_file(dirs: &[PathBuf], stem: &str) -> Option<PathBuf> {
-    dirs.iter().find_map(|d| {
-        EXTENSIONS
-            .iter()
-            .map(|e| d.join(format!("{stem}.{e}")))
-            .find(|p| p.is_file())
-    })
+/// The chain folder's surface files by the structure their names name
+/// ([`structure_names`]): the folder's own before its `surfaces/`, and in one folder PLY
+/// before STL before OBJ for the same name.
+fn named_files(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>, ChainError> {
+    let rank = |p: &PathBuf| {
+        let ext = surface_extension(p).unwrap_or_default();
+        EXTENSIONS.iter().position(|e| *e == ext)
+    };
+    let mut named: Vec<(String, PathBuf)> = Vec::new();
+    for dir in dirs {
+        let mut files = surface_files(dir).map_err(|e| ChainError::Read(e.to_string()))?;
+        files.retain(|p| rank(p).is_some());
+        files.sort_by_key(rank);
+        for (name, path) in structure_names(&files).into_iter().zip(files) {
+            if !named.iter().any(|(n, _)| *n == name) {
+                named.push((name, path));
+            }
+        }
+    }
+    Ok(named)
 }
 
-fn read_part(path: &Path) -> Result<TriMesh, ChainError> {
-    let mesh = read_surface(path).map_err(|e| ChainError::Read(e.to_string()))?;
+/// Reads one closed surface; one whose triangles all face inward (a negative enclosed
+/// volume) is turned outward, with a note.
+fn read_part(path: &Path, notes: &mut Vec<String>) -> Result<TriMesh, ChainError> {
+    let mut mesh = read_surface(path).map_err(|e| ChainError::Read(e.to_string()))?;
+    let volume = mesh.signed_volume();
+    if volume < 0.0 {
+        mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        notes.push(format!(
+            "{}: its triangles face inward (enclosed volume {volume:.3} mm³); read turned outward",
+            path.display()
+        ));
+    }
     if mesh.triangles.is_empty() || mesh.signed_volume() <= 0.0 {
         return Err(ChainError::Surface {
             path: path.to_path_buf(),
             what: format!(
-                "expected a closed surface with outward normals (enclosed volume {:.3} mm³)",
+                "expected a closed surface (enclosed volume {:.3} mm³)",
                 mesh.signed_volume()
             ),
         });
@@ -138,27 +168,41 @@ impl ChainAnatomy {
     /// and a landmark file that says the side.
     pub fn load(dir: &Path) -> Result<ChainAnatomy, ChainError> {
         let dirs = [dir.to_path_buf(), dir.join("surfaces")];
-        let ossicles: Vec<(Ossicle, Option<PathBuf>)> = Ossicle::ALL
-            .iter()
-            .map(|o| (*o, find_file(&dirs, o.name())))
-            .collect();
+        let files = named_files(&dirs)?;
+        let file = |name: &str| {
+            files
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, p)| p.clone())
+        };
+        let ossicles: Vec<(Ossicle, Option<PathBuf>)> =
+            Ossicle::ALL.iter().map(|o| (*o, file(o.name()))).collect();
         let found: Vec<&str> = ossicles
             .iter()
             .filter(|(_, p)| p.is_some())
             .map(|(o, _)| o.name())
             .collect();
-        let fused = FUSED_STEMS.iter().find_map(|s| find_file(&dirs, s));
-        let parts = if found.len() == 3 {
+        let fused = FUSED_STEMS.iter().find_map(|s| file(s));
+        let mut notes = Vec::new();
+        let chosen: Vec<(PartKind, PathBuf)> = if found.len() == 3 {
             ossicles
                 .into_iter()
-                .filter_map(|(o, p)| p.map(|p| (o, p)))
-                .map(|(o, p)| Ok((PartKind::Ossicle(o), read_part(&p)?)))
-                .collect::<Result<Vec<_>, ChainError>>()?
+                .filter_map(|(o, p)| p.map(|p| (PartKind::Ossicle(o), p)))
+                .collect()
         } else if let Some(p) = fused {
-            vec![(PartKind::Chain, read_part(&p)?)]
+            vec![(PartKind::Chain, p)]
         } else if found.is_empty() {
+            let names: Vec<String> = files
+                .iter()
+                .filter_map(|(_, p)| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect();
             return Err(ChainError::NoSurfaces {
                 dir: dir.to_path_buf(),
+                found: if names.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (found {}, none named for an ossicle)", names.join(", "))
+                },
             });
         } else {
             let missing: Vec<&str> = Ossicle::ALL
@@ -172,6 +216,16 @@ impl ChainAnatomy {
                 missing: missing.join(", "),
             });
         };
+        let mut parts = Vec::new();
+        for (kind, path) in chosen {
+            let stem = file_stem(&path);
+            if !stem.eq_ignore_ascii_case(kind.name())
+                && !FUSED_STEMS.iter().any(|f| stem.eq_ignore_ascii_case(f))
+            {
+                notes.push(format!("{}: read as the {}", path.display(), kind.name()));
+            }
+            parts.push((kind, read_part(&path, &mut notes)?));
+        }
         let path = dirs
             .iter()
             .flat_map(|d| LANDMARK_FILES.iter().map(move |f| d.join(f)))
@@ -192,6 +246,7 @@ impl ChainAnatomy {
             side,
             variation: None,
             articulation: None,
+            notes,
         })
     }
 
@@ -280,6 +335,7 @@ impl ChainAnatomy {
             side: self.side,
             variation: self.variation.clone(),
             articulation: self.articulation.clone(),
+            notes: self.notes.clone(),
         }
     }
 }
@@ -522,6 +578,95 @@ fn oval_window(fp: &Disc, meshes: &[(PartKind, TriMesh)]) -> Disc {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::io::{obj, ply, stl};
+    use crate::mesh::shapes::icosphere;
+
+    /// Three balls as the malleus, incus and stapes, and landmarks on them.
+    fn balls() -> [TriMesh; 3] {
+        [-3.0, 0.0, 3.0].map(|x| icosphere(Point3::new(x, 0.0, 0.0), 1.0, 2))
+    }
+
+    fn write_landmarks(dir: &Path) {
+        let landmarks = Landmarks::from_points([
+            Point3::new(-3.0, 0.0, 0.0),
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(3.0, 0.0, 0.0),
+        ]);
+        let text = crate::ear::write_json(&landmarks, Some(Side::Right));
+        std::fs::write(dir.join("landmarks.json"), text).unwrap();
+    }
+
+    /// A chain exported by other tools: names that only contain the ossicle's, three formats,
+    /// one surface facing inward. Each is read as its ossicle, outward, with a note saying so;
+    /// a folder whose files name no ossicle is refused with the files it has.
+    #[test]
+    fn a_chain_folder_is_read_by_the_names_its_files_say() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        let [malleus, incus, stapes] = balls();
+        stl::write_stl(
+            &dir.join("01_Malleus.stl"),
+            &malleus,
+            stl::StlEncoding::Binary,
+        )
+        .unwrap();
+        ply::write_ply(
+            &dir.join("Segmentation_Incus.ply"),
+            &incus,
+            &Default::default(),
+        )
+        .unwrap();
+        let inward = TriMesh {
+            vertices: stapes.vertices.clone(),
+            triangles: stapes
+                .triangles
+                .iter()
+                .map(|t| [t[0], t[2], t[1]])
+                .collect(),
+        };
+        obj::write_obj(&dir.join("stapes.obj"), &inward).unwrap();
+        write_landmarks(dir);
+        let chain = ChainAnatomy::load(dir).unwrap();
+        let kinds: Vec<&str> = chain.parts.iter().map(|(k, _)| k.name()).collect();
+        assert_eq!(kinds, ["malleus", "incus", "stapes"]);
+        for ((_, read), given) in chain.parts.iter().zip([&malleus, &incus, &stapes]) {
+            let (v, expected) = (read.signed_volume(), given.signed_volume());
+            assert!(
+                expected > 4.0 && (v - expected).abs() < 1e-3 * expected,
+                "{v} vs {expected}"
+            );
+            assert!((read.vertices[0] - given.vertices[0]).norm() < 1e-5);
+        }
+        let notes = chain.notes.join("\n");
+        assert!(
+            notes.contains("01_Malleus.stl: read as the malleus"),
+            "{notes}"
+        );
+        assert!(
+            notes.contains("Segmentation_Incus.ply: read as the incus"),
+            "{notes}"
+        );
+        assert!(
+            notes.contains("stapes.obj: its triangles face inward"),
+            "{notes}"
+        );
+        assert_eq!(chain.notes.len(), 3, "{notes}");
+
+        let other = tmp.path().join("other");
+        std::fs::create_dir(&other).unwrap();
+        stl::write_stl(
+            &other.join("Segment_1.stl"),
+            &malleus,
+            stl::StlEncoding::Binary,
+        )
+        .unwrap();
+        write_landmarks(&other);
+        let err = ChainAnatomy::load(&other).unwrap_err().to_string();
+        assert!(
+            err.contains("no chain surfaces (found Segment_1.stl, none named for an ossicle)"),
+            "{err}"
+        );
+    }
 
     /// The turned disc is where the atlas's disc is carried by the chain's turn seen in the
     /// atlas frame: for any chain point x, the turned disc's distance at the atlas image of the

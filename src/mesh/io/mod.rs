@@ -42,6 +42,56 @@ impl MeshIoError {
     }
 }
 
+/// The surface formats [`read_surface`] reads, by file extension (any case).
+pub const SURFACE_EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
+
+/// The surface format of `path` by its extension (lowercased), if [`read_surface`] reads it.
+pub fn surface_extension(path: &Path) -> Option<String> {
+    let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+    SURFACE_EXTENSIONS.contains(&ext.as_str()).then_some(ext)
+}
+
+/// The surface files of folder `dir` that [`read_surface`] reads, sorted by name; none when
+/// the folder does not exist.
+pub fn surface_files(dir: &Path) -> Result<Vec<PathBuf>, MeshIoError> {
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let entries = std::fs::read_dir(dir).map_err(|source| MeshIoError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && surface_extension(p).is_some())
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// Reads a triangle surface by its extension: PLY, STL, OBJ, or the triangle cells of a VTU.
+pub fn read_surface(path: &Path) -> Result<crate::mesh::TriMesh, MeshIoError> {
+    Ok(match surface_extension(path).as_deref() {
+        Some("ply") => ply::read_ply(path)?.0,
+        Some("stl") => stl::read_stl(path)?,
+        Some("obj") => obj::read_obj(path)?,
+        Some(_) => {
+            let (volume, _) = vtu::read_vtu(path)?;
+            crate::mesh::TriMesh {
+                vertices: volume.tets.nodes,
+                triangles: volume.triangles,
+            }
+        }
+        None => {
+            return Err(MeshIoError::parse(
+                path,
+                "file extension",
+                "a surface mesh: .ply, .stl, .obj or .vtu",
+            ));
+        }
+    })
+}
+
 /// Reads a whole file.
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshIoError> {
     std::fs::read(path).map_err(|source| MeshIoError::Io {
