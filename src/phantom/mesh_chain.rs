@@ -216,6 +216,12 @@ impl ChainAnatomy {
                 missing: missing.join(", "),
             });
         };
+        if let Some(drum) = file("eardrum") {
+            notes.push(format!(
+                "{}: not used; the phantom's eardrum, canal and cavity are the atlas's, placed around the chain",
+                drum.display()
+            ));
+        }
         let mut parts = Vec::new();
         for (kind, path) in chosen {
             let stem = file_stem(&path);
@@ -625,6 +631,8 @@ mod tests {
                 .collect(),
         };
         obj::write_obj(&dir.join("stapes.obj"), &inward).unwrap();
+        let drum = icosphere(Point3::new(0.0, 5.0, 0.0), 2.0, 1);
+        obj::write_obj(&dir.join("09_Tympanic Membrane.obj"), &drum).unwrap();
         write_landmarks(dir);
         let chain = ChainAnatomy::load(dir).unwrap();
         let kinds: Vec<&str> = chain.parts.iter().map(|(k, _)| k.name()).collect();
@@ -650,7 +658,8 @@ mod tests {
             notes.contains("stapes.obj: its triangles face inward"),
             "{notes}"
         );
-        assert_eq!(chain.notes.len(), 3, "{notes}");
+        assert!(notes.contains("Tympanic Membrane.obj: not used"), "{notes}");
+        assert_eq!(chain.notes.len(), 4, "{notes}");
 
         let other = tmp.path().join("other");
         std::fs::create_dir(&other).unwrap();
