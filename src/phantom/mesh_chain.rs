@@ -35,6 +35,8 @@ use crate::register::rigid::{SimilarityTransform, fit_similarity};
 const EXTENSIONS: [&str; 3] = ["ply", "stl", "obj"];
 /// Names a fused chain surface may have.
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
+/// The structure names a chain folder's files may have ([`structure_names`]).
+const KNOWN_NAMES: [&str; 6] = ["malleus", "incus", "stapes", "chain", "ossicles", "eardrum"];
 /// Landmark files, tried in this order.
 const LANDMARK_FILES: [&str; 4] = [
     "landmarks.json",
@@ -77,7 +79,7 @@ pub struct ChainAnatomy {
     /// The articulation applied to the chain as read, if any.
     pub articulation: Option<ChainArticulation>,
     /// How the folder was read, for the user: a surface taken by a name other than the
-    /// part's own, a surface turned outward.
+    /// part's own, a surface turned outward, an eardrum surface not used.
     pub notes: Vec<String>,
 }
 
@@ -93,12 +95,14 @@ pub enum ChainError {
         found: String,
     },
     #[error(
-        "--anatomy {dir}: found {found} but not {missing}; expected all three ossicles or one fused chain"
+        "--anatomy {dir}: found {found} but not {missing}{others}; expected all three ossicles or one fused chain, each in one file whose name says which"
     )]
     MissingOssicle {
         dir: PathBuf,
         found: String,
         missing: String,
+        /// The surface files whose names name no structure (" (other surface files: ...)").
+        others: String,
     },
     #[error("--anatomy {dir}: no landmark file; expected one of {}", LANDMARK_FILES.join(", "))]
     NoLandmarks { dir: PathBuf },
@@ -164,8 +168,9 @@ fn read_part(path: &Path, notes: &mut Vec<String>) -> Result<TriMesh, ChainError
 
 impl ChainAnatomy {
     /// Reads `dir`: `malleus`, `incus` and `stapes` surfaces, or one fused `chain` (also
-    /// `ossicles`), in the folder or its `surfaces/` (as `otoatlas atlas export` writes them),
-    /// and a landmark file that says the side.
+    /// `ossicles`), each a file whose name names it ([`structure_names`]: `01_Malleus.stl`),
+    /// in the folder or its `surfaces/` (as `otoatlas atlas export` writes them), and a
+    /// landmark file that says the side.
     pub fn load(dir: &Path) -> Result<ChainAnatomy, ChainError> {
         let dirs = [dir.to_path_buf(), dir.join("surfaces")];
         let files = named_files(&dirs)?;
@@ -210,10 +215,20 @@ impl ChainAnatomy {
                 .map(|o| o.name())
                 .filter(|n| !found.contains(n))
                 .collect();
+            let others: Vec<String> = files
+                .iter()
+                .filter(|(n, _)| !KNOWN_NAMES.contains(&n.as_str()))
+                .filter_map(|(_, p)| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect();
             return Err(ChainError::MissingOssicle {
                 dir: dir.to_path_buf(),
                 found: found.join(", "),
                 missing: missing.join(", "),
+                others: if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (other surface files: {})", others.join(", "))
+                },
             });
         };
         if let Some(drum) = file("eardrum") {
@@ -673,6 +688,22 @@ mod tests {
         let err = ChainAnatomy::load(&other).unwrap_err().to_string();
         assert!(
             err.contains("no chain surfaces (found Segment_1.stl, none named for an ossicle)"),
+            "{err}"
+        );
+        // two files that would both be the incus: neither is guessed, and the refusal names them
+        for file in [
+            "malleus.stl",
+            "incus_left.stl",
+            "incus_right.stl",
+            "stapes.stl",
+        ] {
+            stl::write_stl(&other.join(file), &malleus, stl::StlEncoding::Binary).unwrap();
+        }
+        let err = ChainAnatomy::load(&other).unwrap_err().to_string();
+        assert!(
+            err.contains(
+                "found malleus, stapes but not incus (other surface files: Segment_1.stl, incus_left.stl, incus_right.stl)"
+            ),
             "{err}"
         );
     }
