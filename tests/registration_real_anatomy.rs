@@ -709,3 +709,79 @@ fn a_chain_larger_than_the_atlas_bounds_is_placed_again() {
     // measured 0.435 -> 0.088 mm (0.108 mm registered from the landmark fit)
     assert!(masd <= 0.095, "chain MASD {masd:.3} mm");
 }
+
+/// A chain folder without a landmark file gets its landmarks and side proposed by a fit of the
+/// atlas's ossicles (`phantom::chain_landmarks`). Judged against the two chains' own picks
+/// (docs/anatomy.md, "Real chains": SOFA's umbo and IMJ from its mesh alone, the CT chain's
+/// IMJ carried from SOFA's): the side is right with a clear margin and each landmark lies
+/// within 0.4 mm of the pick (measured 2026-11-30: 0.12, 0.21, 0.12 mm on SOFA's chain, 0.00,
+/// 0.32, 0.07 mm on the CT chain). `phantom` says it did so and records it in `truth.json`.
+#[test]
+fn a_chain_folder_without_landmarks_gets_them_proposed_by_the_atlas() {
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let sofa = sofa_chain(&anatomy, tmp.path());
+    let ct = ct_chain(&anatomy, tmp.path());
+    for (name, chain, surfaces) in [
+        (
+            "sofa",
+            &sofa,
+            vec![
+                "surfaces/malleus.ply",
+                "surfaces/incus.ply",
+                "surfaces/stapes.ply",
+            ],
+        ),
+        ("ct455", &ct, vec!["chain.obj"]),
+    ] {
+        let given = otoatlas::ear::read_landmarks(&chain.join("landmarks.json")).unwrap();
+        let bare = tmp.path().join(format!("{name}-bare"));
+        std::fs::create_dir_all(&bare).unwrap();
+        for file in surfaces {
+            let to = bare.join(Path::new(file).file_name().unwrap());
+            std::fs::copy(chain.join(file), to).unwrap();
+        }
+        let proposed = otoatlas::phantom::ChainAnatomy::load(&bare).unwrap();
+        let record = proposed.proposed.expect("landmarks proposed");
+        assert_eq!(Some(proposed.side), given.side, "{name}");
+        assert!(
+            record.other_side_mm > record.mean_distance_mm + 0.2,
+            "{name}: {record:?}"
+        );
+        for (p, g) in proposed
+            .landmarks
+            .points()
+            .iter()
+            .zip(given.landmarks.points().iter())
+        {
+            let off = (p - g).norm();
+            println!("{name}: proposed {p:?}, picked {g:?}: {off:.3} mm");
+            assert!(off < 0.4, "{name}: {off:.3} mm");
+        }
+        if name == "sofa" {
+            let out = otoatlas(&[
+                "phantom",
+                "--out",
+                s(&tmp.path().join("cases")),
+                "--anatomy",
+                s(&bare),
+            ]);
+            assert!(out.status.success());
+            let log = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                log.contains("landmarks and side proposed") && log.contains("a left ear"),
+                "{log}"
+            );
+            let truth: Value = serde_json::from_str(
+                &std::fs::read_to_string(tmp.path().join("cases/case-001/truth.json")).unwrap(),
+            )
+            .unwrap();
+            let scale = truth["anatomy"]["landmarks_proposed"]["scale"]
+                .as_f64()
+                .unwrap();
+            assert!((scale - 1.0).abs() < 0.05, "{scale}");
+        }
+    }
+}

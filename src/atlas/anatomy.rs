@@ -286,6 +286,11 @@ impl Anatomy {
         &self.footplate
     }
 
+    /// The incudostapedial joint's interface (its centre is the ISJ landmark; normal `e3`).
+    pub fn incudostapedial_joint(&self) -> &Disc {
+        &self.joints[1]
+    }
+
     /// The tube of a ligament or tendon region (None for other regions).
     pub fn band(&self, region: Region) -> Option<&Tube> {
         BANDS

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::chain_articulation::{ChainArticulation, OssicleTurn};
+use super::chain_landmarks::{self, LandmarksProposed, ProposedLandmarks};
 use super::chain_variation::ChainVariation;
 use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
 use super::truth::{ChainPlacement, ossicle_surfaces};
@@ -78,9 +79,23 @@ pub struct ChainAnatomy {
     pub variation: Option<ChainVariation>,
     /// The articulation applied to the chain as read, if any.
     pub articulation: Option<ChainArticulation>,
+    /// How the landmarks and side were proposed, when the folder had no landmark file.
+    pub proposed: Option<LandmarksProposed>,
     /// How the folder was read, for the user: a surface taken by a name other than the
     /// part's own, a surface turned outward, an eardrum surface not used.
     pub notes: Vec<String>,
+}
+
+/// Landmarks and side for a chain without a landmark file, from the phantom's atlas anatomy.
+fn propose_landmarks(parts: &[(PartKind, TriMesh)]) -> Option<ProposedLandmarks> {
+    let atlas = Anatomy::default_right().ok()?;
+    let surfaces = ossicle_surfaces(&PatientAnatomy::plain(atlas.clone()));
+    let chain: Vec<&TriMesh> = parts.iter().map(|(_, m)| m).collect();
+    chain_landmarks::propose(&chain, &surfaces, &atlas)
+}
+
+fn point_text(p: &Point3<f64>) -> String {
+    format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z)
 }
 
 /// Errors reading a chain folder.
@@ -104,7 +119,10 @@ pub enum ChainError {
         /// The surface files whose names name no structure (" (other surface files: ...)").
         others: String,
     },
-    #[error("--anatomy {dir}: no landmark file; expected one of {}", LANDMARK_FILES.join(", "))]
+    #[error(
+        "--anatomy {dir}: no landmark file (expected one of {}), and none could be proposed: a chain surface is empty",
+        LANDMARK_FILES.join(", ")
+    )]
     NoLandmarks { dir: PathBuf },
     #[error(
         "{path}: the file does not say the ear's side; expected \"side\": \"left\" or \"right\""
@@ -247,15 +265,35 @@ impl ChainAnatomy {
             }
             parts.push((kind, read_part(&path, &mut notes)?));
         }
-        let path = dirs
+        let landmark_file = dirs
             .iter()
             .flat_map(|d| LANDMARK_FILES.iter().map(move |f| d.join(f)))
-            .find(|p| p.is_file())
-            .ok_or_else(|| ChainError::NoLandmarks {
-                dir: dir.to_path_buf(),
-            })?;
-        let file = read_landmarks(&path).map_err(|e| ChainError::Read(e.to_string()))?;
-        let side = file.side.ok_or(ChainError::NoSide { path })?;
+            .find(|p| p.is_file());
+        let (landmarks, side, proposed) = match landmark_file {
+            Some(path) => {
+                let file = read_landmarks(&path).map_err(|e| ChainError::Read(e.to_string()))?;
+                let side = file.side.ok_or(ChainError::NoSide { path })?;
+                (file.landmarks, side, None)
+            }
+            None => {
+                let p = propose_landmarks(&parts).ok_or_else(|| ChainError::NoLandmarks {
+                    dir: dir.to_path_buf(),
+                })?;
+                notes.push(format!(
+                    "no landmark file ({}): landmarks and side proposed by fitting the atlas's ossicles to the chain: a {} ear (surfaces {:.3} mm apart; as the other side {:.3} mm), umbo {}, IMJ {}, ISJ {} mm (the atlas's, carried; then the umbo moved {:.2} mm onto the manubrium's tip and the ISJ {:.2} mm to its interface's bone); check them, and write them to landmarks.json to keep them",
+                    LANDMARK_FILES.join(", "),
+                    p.side.as_str(),
+                    p.mean_distance_mm,
+                    p.other_side_mm,
+                    point_text(&p.landmarks.umbo),
+                    point_text(&p.landmarks.incudomalleolar),
+                    point_text(&p.landmarks.incudostapedial),
+                    p.umbo_moved_mm,
+                    p.isj_moved_mm,
+                ));
+                (p.landmarks, p.side, Some(LandmarksProposed::from(&p)))
+            }
+        };
         let name = dir
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -263,10 +301,11 @@ impl ChainAnatomy {
         Ok(ChainAnatomy {
             name,
             parts,
-            landmarks: file.landmarks,
+            landmarks,
             side,
             variation: None,
             articulation: None,
+            proposed,
             notes,
         })
     }
@@ -356,6 +395,7 @@ impl ChainAnatomy {
             side: self.side,
             variation: self.variation.clone(),
             articulation: self.articulation.clone(),
+            proposed: self.proposed,
             notes: self.notes.clone(),
         }
     }
@@ -429,6 +469,7 @@ impl MeshChain {
             footplate_shift_mm: (footplate.center - atlas_fp.center).norm(),
             variation: chain.variation.clone(),
             articulation: chain.articulation.clone(),
+            landmarks_proposed: chain.proposed,
         };
         Ok(MeshChain {
             atlas: plain,

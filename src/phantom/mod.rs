@@ -5,6 +5,7 @@
 
 pub mod case_writer;
 pub mod chain_articulation;
+pub mod chain_landmarks;
 pub mod chain_variation;
 pub mod draws;
 pub mod drum;

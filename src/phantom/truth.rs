@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::chain_articulation::ChainArticulation;
+use super::chain_landmarks::LandmarksProposed;
 use super::chain_variation::ChainVariation;
 use super::imaging::ImagingParams;
 use super::patient::PatientAnatomy;
@@ -236,6 +237,10 @@ pub struct ChainPlacement {
     /// before mirroring; absent when the ossicles were imaged as they are.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub articulation: Option<ChainArticulation>,
+    /// How the chain's landmarks and side were proposed, when its folder had no landmark file;
+    /// absent when they were read from one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub landmarks_proposed: Option<LandmarksProposed>,
 }
 
 #[cfg(test)]
