@@ -102,28 +102,23 @@ pub fn propose(
     let atlas_landmarks = anatomy.landmarks();
     let chain_mesh = TriMesh::concatenated(chain);
     let chain_bvh = Bvh::new(&chain_mesh, "chain").ok()?;
+    let chain_fine = thinned(&chain_mesh.vertices, MAX_SAMPLES);
+    let chain_coarse = thinned(&chain_mesh.vertices, MAX_SCREEN_SAMPLES);
+    let right = TriMesh::concatenated(&atlas.iter().collect::<Vec<_>>());
     let fits: Vec<(Side, SimilarityTransform, f64)> = [Side::Right, Side::Left]
         .par_iter()
         .filter_map(|&side| {
-            let mirror = |p: &Point3<f64>| match side {
-                Side::Right => *p,
-                Side::Left => Point3::new(-p.x, p.y, p.z),
+            let atlas_mesh = TriMesh {
+                vertices: right.vertices.iter().map(|p| on_side(side, p)).collect(),
+                triangles: right.triangles.clone(),
             };
-            let meshes: Vec<TriMesh> = atlas
-                .iter()
-                .map(|m| TriMesh {
-                    vertices: m.vertices.iter().map(mirror).collect(),
-                    triangles: m.triangles.clone(),
-                })
-                .collect();
-            let atlas_mesh = TriMesh::concatenated(&meshes.iter().collect::<Vec<_>>());
             let fine = (
                 thinned(&atlas_mesh.vertices, MAX_SAMPLES),
-                thinned(&chain_mesh.vertices, MAX_SAMPLES),
+                chain_fine.clone(),
             );
             let coarse = (
                 thinned(&atlas_mesh.vertices, MAX_SCREEN_SAMPLES),
-                thinned(&chain_mesh.vertices, MAX_SCREEN_SAMPLES),
+                chain_coarse.clone(),
             );
             let scored = |t: SimilarityTransform, (atlas_points, chain_points): &Samples| {
                 symmetric_distance(&atlas_mesh, t, atlas_points, chain_points, &chain_bvh)
@@ -147,18 +142,15 @@ pub fn propose(
         .iter()
         .find(|f| f.0 != side)
         .map_or(f64::INFINITY, |f| f.2);
-    let carry = |p: &Point3<f64>| match side {
-        Side::Right => fit.apply(p),
-        Side::Left => fit.apply(&Point3::new(-p.x, p.y, p.z)),
-    };
-    let carried = Landmarks::from_points(atlas_landmarks.points().map(|p| carry(&p)));
+    let carried = Landmarks::from_points(
+        atlas_landmarks
+            .points()
+            .map(|p| fit.apply(&on_side(side, &p))),
+    );
     let joint = anatomy.incudostapedial_joint();
     let carry_vector = |v: &Vector3<f64>| {
-        let v = match side {
-            Side::Right => *v,
-            Side::Left => Vector3::new(-v.x, v.y, v.z),
-        };
-        fit.apply_vector(&v).normalize()
+        fit.apply_vector(&on_side(side, &Point3::from(*v)).coords)
+            .normalize()
     };
     let radius = joint.semi_axes[0].min(joint.semi_axes[1]) * fit.scale;
     let inside = SignedSurface::new(&chain_mesh, "chain").ok()?;
@@ -217,6 +209,14 @@ fn bone_centre(
             (s + p.coords, k + 1)
         });
     (count > 0).then(|| Point3::from(sum / count as f64))
+}
+
+/// `p` of the right-ear atlas on the ear `side` (mirrored in x = 0 for the left).
+fn on_side(side: Side, p: &Point3<f64>) -> Point3<f64> {
+    match side {
+        Side::Right => *p,
+        Side::Left => Point3::new(-p.x, p.y, p.z),
+    }
 }
 
 /// At most `most` of `points`, evenly taken.
