@@ -13,11 +13,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use super::chain_anatomy::{ChainAnatomy, ChainError};
 use super::chain_articulation::ChainArticulation;
 use super::chain_variation::ChainVariation;
 use super::draws::uniform_rotation;
 use super::imaging::{Grid, ImagingParams, render};
-use super::mesh_chain::{ChainAnatomy, ChainError, MeshChain};
+use super::mesh_chain::MeshChain;
 use super::patient::{Chain, PatientAnatomy};
 use super::patient_field::{PatientField, label_map};
 use super::scene::{CavityParams, EarScene, TissueLevels};
