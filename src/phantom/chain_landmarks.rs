@@ -28,13 +28,19 @@ use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
 use crate::mesh::TriMesh;
 use crate::mesh::spatial::{Bvh, SignedSurface};
-use crate::register::rigid::{SimilarityTransform, fit_similarity};
+use crate::register::icp::{IcpOptions, Trim, trimmed_icp};
+use crate::register::rigid::SimilarityTransform;
 
-/// ICP iterations, the best few starts of each side fitted again with all the samples, and
-/// the share of the closest pairs kept at each iteration.
-const ITERATIONS: usize = 60;
+/// The ICP of each start: with scale, the closest 90 % of the pairs kept at each iteration.
+const ICP: IcpOptions = IcpOptions {
+    iterations: 60,
+    trim: Trim::Share(0.9),
+    with_scale: true,
+    check_stride: 53,
+    tolerance_mm: 1e-4,
+};
+/// The best few starts of each side are fitted again with all the samples.
 const FINALISTS: usize = 4;
-const KEPT_SHARE: f64 = 0.9;
 /// The umbo is moved onto the chain vertex farthest from the IMJ within this reach \[mm\].
 const UMBO_REACH_MM: f64 = 1.0;
 /// The carried ISJ interface is sampled on a grid of this step \[mm\].
@@ -126,13 +132,20 @@ pub fn propose(
             };
             let mut screened: Vec<(SimilarityTransform, f64)> = starts(&fine.0, &fine.1)
                 .into_par_iter()
-                .filter_map(|start| scored(icp(&coarse.0, &chain_bvh, start), &coarse))
+                .filter_map(|start| {
+                    scored(
+                        trimmed_icp(&coarse.0, &chain_bvh, start, &ICP).transform,
+                        &coarse,
+                    )
+                })
                 .collect();
             screened.sort_by(|a, b| a.1.total_cmp(&b.1));
             screened.truncate(FINALISTS);
             let best = screened
                 .into_par_iter()
-                .filter_map(|(t, _)| scored(icp(&fine.0, &chain_bvh, t), &fine))
+                .filter_map(|(t, _)| {
+                    scored(trimmed_icp(&fine.0, &chain_bvh, t, &ICP).transform, &fine)
+                })
                 .min_by(|a, b| a.1.total_cmp(&b.1))?;
             Some((side, best.0, best.1))
         })
@@ -287,38 +300,6 @@ fn starts(atlas: &[Point3<f64>], chain: &[Point3<f64>]) -> Vec<SimilarityTransfo
             SimilarityTransform::new(rotation, translation, scale)
         })
         .collect()
-}
-
-/// Trimmed point-to-surface ICP with scale of `samples` onto `chain`, from `start`.
-fn icp(samples: &[Point3<f64>], chain: &Bvh, start: SimilarityTransform) -> SimilarityTransform {
-    let mut t = start;
-    for _ in 0..ITERATIONS {
-        let mut pairs: Vec<(Point3<f64>, Point3<f64>, f64)> = samples
-            .iter()
-            .map(|a| {
-                let hit = chain.closest(&t.apply(a));
-                (*a, hit.point, hit.distance)
-            })
-            .collect();
-        pairs.sort_by(|a, b| a.2.total_cmp(&b.2));
-        pairs.truncate(((pairs.len() as f64) * KEPT_SHARE).ceil() as usize);
-        let source: Vec<Point3<f64>> = pairs.iter().map(|p| p.0).collect();
-        let target: Vec<Point3<f64>> = pairs.iter().map(|p| p.1).collect();
-        let Some(fit) = fit_similarity(&source, &target, true) else {
-            break;
-        };
-        let next = fit.transform;
-        let moved = samples
-            .iter()
-            .step_by(53)
-            .map(|a| (next.apply(a) - t.apply(a)).norm())
-            .fold(0.0, f64::max);
-        t = next;
-        if moved < 1e-4 {
-            break;
-        }
-    }
-    t
 }
 
 /// The mean of the mean distances from the atlas's points carried by `t` to the chain and

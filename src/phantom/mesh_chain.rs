@@ -13,7 +13,6 @@
 use std::path::PathBuf;
 
 use nalgebra::{Matrix3, Point3, Vector3};
-use rayon::prelude::*;
 
 use super::chain_anatomy::{ChainAnatomy, ChainError, PartKind};
 use super::chain_articulation::OssicleTurn;
@@ -25,11 +24,18 @@ use crate::atlas::sdf::{Disc, Frame};
 use crate::ear::Landmarks;
 use crate::mesh::TriMesh;
 use crate::mesh::spatial::{Bvh, SignedSurface};
+use crate::register::icp::{IcpFit, IcpOptions, Trim, trimmed_icp};
 use crate::register::rigid::{SimilarityTransform, fit_similarity};
 
-/// ICP: iterations, and pairs farther apart than this are trimmed [mm].
-const ICP_ITERATIONS: usize = 40;
-const ICP_TRIM_MM: f64 = 1.0;
+/// The ICP refining the landmark fit: rotation and translation only, pairs farther apart than
+/// 1 mm trimmed.
+const ICP: IcpOptions = IcpOptions {
+    iterations: 40,
+    trim: Trim::Distance(1.0),
+    with_scale: false,
+    check_stride: 97,
+    tolerance_mm: 1e-4,
+};
 
 /// A real chain in the atlas frame, with the atlas around it.
 pub struct MeshChain {
@@ -58,7 +64,10 @@ impl MeshChain {
             .iter()
             .flat_map(|m| m.vertices.iter().copied())
             .collect();
-        let (atlas_to_chain, icp_mean_mm) = icp(&samples, &bvh, fit.transform);
+        let IcpFit {
+            transform: atlas_to_chain,
+            mean_kept_mm: icp_mean_mm,
+        } = trimmed_icp(&samples, &bvh, fit.transform, &ICP);
         let to_atlas = atlas_to_chain.inverse();
         let meshes: Vec<(PartKind, TriMesh)> = chain
             .parts
@@ -163,55 +172,6 @@ impl Chain for MeshChain {
     fn anatomy(&self) -> &Anatomy {
         self.atlas.anatomy()
     }
-}
-
-/// Trimmed point-to-surface ICP of `samples` (atlas frame) onto the chain, refining rotation
-/// and translation from `start` with its scale fixed; returns the transform and the mean
-/// distance of the kept pairs.
-fn icp(
-    samples: &[Point3<f64>],
-    chain: &Bvh,
-    start: SimilarityTransform,
-) -> (SimilarityTransform, f64) {
-    let mut t = start;
-    let mut mean = f64::INFINITY;
-    for _ in 0..ICP_ITERATIONS {
-        let pairs: Vec<(Point3<f64>, Point3<f64>, f64)> = samples
-            .par_iter()
-            .map(|a| {
-                let x = t.apply(a);
-                let hit = chain.closest(&x);
-                (*a, hit.point, (hit.point - x).norm())
-            })
-            .collect();
-        let kept: Vec<&(Point3<f64>, Point3<f64>, f64)> =
-            pairs.iter().filter(|(_, _, d)| *d < ICP_TRIM_MM).collect();
-        if kept.len() < 3 {
-            break;
-        }
-        mean = kept.iter().map(|(_, _, d)| d).sum::<f64>() / kept.len() as f64;
-        // rigid fit on the atlas points scaled by the landmark scale
-        let source: Vec<Point3<f64>> = kept.iter().map(|(a, _, _)| a * t.scale).collect();
-        let target: Vec<Point3<f64>> = kept.iter().map(|(_, c, _)| *c).collect();
-        let Some(fit) = fit_similarity(&source, &target, false) else {
-            break;
-        };
-        let next = SimilarityTransform::new(
-            fit.transform.rotation_matrix(),
-            Vector3::from(fit.transform.translation),
-            t.scale,
-        );
-        let moved = samples
-            .iter()
-            .step_by(97)
-            .map(|a| (next.apply(a) - t.apply(a)).norm())
-            .fold(0.0, f64::max);
-        t = next;
-        if moved < 1e-4 {
-            break;
-        }
-    }
-    (t, mean)
 }
 
 /// The atlas's footplate disc `fp` turned as the chain's stapes was (`turn`, in the chain's

@@ -7,6 +7,7 @@ pub mod auto_landmarks;
 pub mod chain_search;
 pub mod deform;
 pub mod eardrum;
+pub mod icp;
 pub mod landmarks;
 pub mod placement;
 pub mod probes;
