@@ -785,3 +785,49 @@ fn a_chain_folder_without_landmarks_gets_them_proposed_by_the_atlas() {
         }
     }
 }
+
+/// SOFA's own folder as it is published (`Ossicles.vtu`, its tetrahedral chain with no
+/// surface cells, and a lone `malleus.obj`) is a chain folder: the chain is read whole from
+/// the VTU's tetrahedra (its boundary of 3,412 triangles enclosing their 27.15 mm³, the
+/// shared anatomy's own figures), the lone malleus is said not to be used, and the landmarks
+/// and side proposed on the fused chain are those picked on the separate ossicles (left;
+/// within 0.4 mm; measured 2026-11-30: 0.12, 0.21, 0.12 mm). Nothing is written into the
+/// folder.
+#[test]
+fn sofas_published_folder_is_a_chain_folder_as_it_is() {
+    let Some(anatomy) = shared_anatomy() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let picks =
+        otoatlas::ear::read_landmarks(&sofa_chain(&anatomy, tmp.path()).join("landmarks.json"))
+            .unwrap();
+    let chain = otoatlas::phantom::ChainAnatomy::load(&anatomy.join("sofa-ossicles")).unwrap();
+    let kinds: Vec<&str> = chain.parts.iter().map(|(k, _)| k.name()).collect();
+    assert_eq!(kinds, ["chain"]);
+    let surface = &chain.parts[0].1;
+    assert_eq!(surface.triangles.len(), 3412);
+    assert!(
+        (surface.signed_volume() - 27.15).abs() < 0.01,
+        "{}",
+        surface.signed_volume()
+    );
+    let notes = chain.notes.join("\n");
+    assert!(
+        notes.contains("malleus.obj: not used; the chain is read whole from")
+            && notes.contains("Ossicles.vtu (no incus or stapes surface)"),
+        "{notes}"
+    );
+    assert!(chain.proposed.is_some(), "{notes}");
+    assert_eq!(Some(chain.side), picks.side);
+    for (p, g) in chain
+        .landmarks
+        .points()
+        .iter()
+        .zip(picks.landmarks.points().iter())
+    {
+        let off = (p - g).norm();
+        println!("SOFA's folder: proposed {p:?}, picked {g:?}: {off:.3} mm");
+        assert!(off < 0.4, "{off:.3} mm");
+    }
+}

@@ -21,8 +21,9 @@ use crate::ear::{file_stem, read_landmarks, structure_names};
 use crate::mesh::TriMesh;
 use crate::mesh::io::{read_surface, surface_extension, surface_files};
 
-/// Surface file names per part, tried in this order (PLY, STL, OBJ).
-const EXTENSIONS: [&str; 3] = ["ply", "stl", "obj"];
+/// Surface file names per part, tried in this order (PLY, STL, OBJ, then a VTU's triangles or
+/// the boundary of its tetrahedra).
+const EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
 /// Names a fused chain surface may have.
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
 /// The structure names a chain folder's files may have ([`structure_names`]).
@@ -88,7 +89,7 @@ fn point_text(p: &Point3<f64>) -> String {
 #[derive(Debug, thiserror::Error)]
 pub enum ChainError {
     #[error(
-        "--anatomy {dir}: no chain surfaces{found}; expected malleus, incus and stapes (or one fused chain or ossicles) as .ply, .stl or .obj files whose names say which (malleus.ply, 01_Malleus.stl, Segmentation_Stapes.obj), in the folder or in its surfaces/"
+        "--anatomy {dir}: no chain surfaces{found}; expected malleus, incus and stapes (or one fused chain or ossicles) as .ply, .stl, .obj or .vtu files whose names say which (malleus.ply, 01_Malleus.stl, Segmentation_Stapes.obj), in the folder or in its surfaces/"
     )]
     NoSurfaces {
         dir: PathBuf,
@@ -191,6 +192,11 @@ impl ChainAnatomy {
             .filter(|(_, p)| p.is_some())
             .map(|(o, _)| o.name())
             .collect();
+        let missing: Vec<&str> = Ossicle::ALL
+            .iter()
+            .map(|o| o.name())
+            .filter(|n| !found.contains(n))
+            .collect();
         let fused = FUSED_STEMS.iter().find_map(|s| file(s));
         let mut notes = Vec::new();
         let chosen: Vec<(PartKind, PathBuf)> = if found.len() == 3 {
@@ -199,6 +205,14 @@ impl ChainAnatomy {
                 .filter_map(|(o, p)| p.map(|p| (PartKind::Ossicle(o), p)))
                 .collect()
         } else if let Some(p) = fused {
+            for single in ossicles.iter().filter_map(|(_, single)| single.as_ref()) {
+                notes.push(format!(
+                    "{}: not used; the chain is read whole from {} (no {} surface)",
+                    single.display(),
+                    p.display(),
+                    missing.join(" or "),
+                ));
+            }
             vec![(PartKind::Chain, p)]
         } else if found.is_empty() {
             let names: Vec<String> = files
@@ -214,11 +228,6 @@ impl ChainAnatomy {
                 },
             });
         } else {
-            let missing: Vec<&str> = Ossicle::ALL
-                .iter()
-                .map(|o| o.name())
-                .filter(|n| !found.contains(n))
-                .collect();
             let others: Vec<String> = files
                 .iter()
                 .filter(|(n, _)| !KNOWN_NAMES.contains(&n.as_str()))

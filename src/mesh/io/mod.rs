@@ -69,7 +69,9 @@ pub fn surface_files(dir: &Path) -> Result<Vec<PathBuf>, MeshIoError> {
     Ok(files)
 }
 
-/// Reads a triangle surface by its extension: PLY, STL, OBJ, or the triangle cells of a VTU.
+/// Reads a triangle surface by its extension: PLY, STL, OBJ, or a VTU's triangle cells (a
+/// VTU of tetrahedra only, such as a finite-element model's: the boundary of its tetrahedra,
+/// outward for positively oriented ones).
 pub fn read_surface(path: &Path) -> Result<crate::mesh::TriMesh, MeshIoError> {
     Ok(match surface_extension(path).as_deref() {
         Some("ply") => ply::read_ply(path)?.0,
@@ -77,9 +79,16 @@ pub fn read_surface(path: &Path) -> Result<crate::mesh::TriMesh, MeshIoError> {
         Some("obj") => obj::read_obj(path)?,
         Some(_) => {
             let (volume, _) = vtu::read_vtu(path)?;
-            crate::mesh::TriMesh {
-                vertices: volume.tets.nodes,
-                triangles: volume.triangles,
+            if volume.triangles.is_empty() && !volume.tets.tets.is_empty() {
+                volume
+                    .tets
+                    .boundary(crate::mesh::tet::BoundaryOf::Whole)
+                    .surface
+            } else {
+                crate::mesh::TriMesh {
+                    vertices: volume.tets.nodes,
+                    triangles: volume.triangles,
+                }
             }
         }
         None => {

@@ -106,4 +106,47 @@ fn reads_sofa_ossicles() {
     let topo = surface_topology(&b.surface);
     assert_eq!(topo.non_manifold_edges, 18);
     assert_eq!(topo.euler, -3);
+    // read as a surface (a chain folder's `Ossicles.vtu`): that boundary, outward, enclosing
+    // the tetrahedra's volume
+    let surface = crate::mesh::io::read_surface(&path).unwrap();
+    assert_eq!(surface.triangles.len(), 3412);
+    assert!(
+        (surface.signed_volume() - m.volume()).abs() < 1e-9,
+        "{} vs {}",
+        surface.signed_volume(),
+        m.volume()
+    );
+}
+
+/// A VTU of tetrahedra only is read as a surface by its tetrahedra's boundary: the box's
+/// 12 triangles, facing outward (enclosing the tetrahedra's volume); with triangle cells,
+/// those.
+#[test]
+fn a_vtu_of_tetrahedra_is_read_as_their_boundary() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cube.vtu");
+    let tets = kuhn_cube();
+    write_vtu(
+        &path,
+        &VolumeMesh::from_tets(tets.clone()),
+        &[],
+        VtuEncoding::Ascii,
+    )
+    .unwrap();
+    let surface = crate::mesh::io::read_surface(&path).unwrap();
+    assert_eq!(surface.triangles.len(), 12);
+    assert_eq!(surface.vertices.len(), 8);
+    assert!((surface.signed_volume() - tets.volume()).abs() < 1e-9);
+    assert!(tets.volume() > 1.0);
+    let (mut mesh, _) = sample();
+    mesh.triangles.truncate(5);
+    mesh.triangle_regions.truncate(5);
+    write_vtu(&path, &mesh, &[], VtuEncoding::Ascii).unwrap();
+    assert_eq!(
+        crate::mesh::io::read_surface(&path)
+            .unwrap()
+            .triangles
+            .len(),
+        5
+    );
 }
