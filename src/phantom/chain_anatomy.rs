@@ -28,6 +28,14 @@ const EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
 /// The structure names a chain folder's files may have ([`structure_names`]).
 const KNOWN_NAMES: [&str; 6] = ["malleus", "incus", "stapes", "chain", "ossicles", "eardrum"];
+/// The bounding-box diagonal a chain's surfaces may have [mm]: the real chains at hand span
+/// 13.0 and 13.6 mm, ossicle sizes vary by about ±10 %; what lies outside is in other units.
+const CHAIN_SPAN_MM: (f64, f64) = (4.0, 40.0);
+/// How far apart the chain's landmarks may lie, relative to the atlas's (the landmark fit's
+/// scale; SOFA's chain 1.03, the CT chain 1.19, their random variations 0.94-1.37): beyond it
+/// the landmarks are in other units than the surfaces, or another chain's, and the scene
+/// around the chain would be drawn at that scale.
+pub const LANDMARK_SCALE: (f64, f64) = (0.5, 2.0);
 /// Landmark files, tried in this order.
 const LANDMARK_FILES: [&str; 4] = [
     "landmarks.json",
@@ -119,6 +127,16 @@ pub enum ChainError {
         "--anatomy {name}: the chain is one fused surface, so its ossicles cannot be turned apart; --vary-articulation expects malleus, incus and stapes surfaces"
     )]
     FusedArticulation { name: String },
+    #[error(
+        "--anatomy {dir}: the chain's surfaces span {span_mm:.4} (their bounding box's diagonal); an ossicular chain spans about 13 mm, so expected {} to {}: are the coordinates in mm (not µm, cm, m or voxel indices)?",
+        CHAIN_SPAN_MM.0, CHAIN_SPAN_MM.1
+    )]
+    Span { dir: PathBuf, span_mm: f64 },
+    #[error(
+        "--anatomy {name}: the chain's landmarks lie {scale:.4} times as far apart as the atlas's; expected {} to {}: are the landmarks and the surfaces in the same units (mm), and the landmarks this chain's?",
+        LANDMARK_SCALE.0, LANDMARK_SCALE.1
+    )]
+    LandmarkScale { name: String, scale: f64 },
     #[error("{0}")]
     Read(String),
     #[error("{path}: {what}")]
@@ -259,6 +277,20 @@ impl ChainAnatomy {
                 notes.push(format!("{}: read as the {}", path.display(), kind.name()));
             }
             parts.push((kind, read_part(&path, &mut notes)?));
+        }
+        let (lo, hi) = parts.iter().flat_map(|(_, m)| &m.vertices).fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), p| (lo.inf(&p.coords), hi.sup(&p.coords)),
+        );
+        let span_mm = (hi - lo).norm();
+        if !(CHAIN_SPAN_MM.0..=CHAIN_SPAN_MM.1).contains(&span_mm) {
+            return Err(ChainError::Span {
+                dir: dir.to_path_buf(),
+                span_mm,
+            });
         }
         let landmark_file = dirs
             .iter()
@@ -506,5 +538,30 @@ mod tests {
             ),
             "{err}"
         );
+    }
+
+    /// A chain whose coordinates are in other units than mm (µm, cm) is refused with its
+    /// span and the question of units, before any image is sized by it.
+    #[test]
+    fn a_chain_in_other_units_is_refused() {
+        for (factor, span) in [(1000.0, "8485.2814"), (0.1, "0.8485")] {
+            let tmp = tempfile::tempdir().unwrap();
+            for (name, mut ball) in ["malleus", "incus", "stapes"].into_iter().zip(balls()) {
+                ball.vertices.iter_mut().for_each(|p| *p *= factor);
+                ply::write_ply(
+                    &tmp.path().join(format!("{name}.ply")),
+                    &ball,
+                    &Default::default(),
+                )
+                .unwrap();
+            }
+            write_landmarks(tmp.path());
+            let err = ChainAnatomy::load(tmp.path()).unwrap_err().to_string();
+            assert!(
+                err.contains(&format!("the chain's surfaces span {span} "))
+                    && err.contains("expected 4 to 40: are the coordinates in mm"),
+                "{err}"
+            );
+        }
     }
 }

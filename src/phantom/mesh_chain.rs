@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
-use super::chain_anatomy::{ChainAnatomy, ChainError, PartKind};
+use super::chain_anatomy::{ChainAnatomy, ChainError, LANDMARK_SCALE, PartKind};
 use super::chain_articulation::OssicleTurn;
 use super::patient::{Aabb, Chain, ChainDistances, PatientAnatomy};
 use super::truth::{ChainPlacement, ossicle_surfaces};
@@ -57,6 +57,13 @@ impl MeshChain {
         };
         let fit = fit_similarity(&atlas.landmarks().points(), &chain.landmarks.points(), true)
             .ok_or_else(|| surface_error("the chain's landmarks are collinear".into()))?;
+        let scale = fit.transform.scale;
+        if !(LANDMARK_SCALE.0..=LANDMARK_SCALE.1).contains(&scale) {
+            return Err(ChainError::LandmarkScale {
+                name: chain.name.clone(),
+                scale,
+            });
+        }
         let union = TriMesh::concatenated(&chain.parts.iter().map(|(_, m)| m).collect::<Vec<_>>());
         let bvh = Bvh::new(&union, "chain").map_err(|e| surface_error(e.to_string()))?;
         let plain = PatientAnatomy::plain(atlas);
@@ -273,6 +280,43 @@ mod tests {
                 assert!(
                     (before - after).abs() < 1e-9,
                     "mirrored {mirrored}, point {k}: {before} -> {after}"
+                );
+            }
+        }
+    }
+
+    /// Landmarks in other units than the chain's surfaces (µm, m) are refused before the
+    /// scene is drawn at their scale; the atlas's own landmarks around the same surfaces are
+    /// placed.
+    #[test]
+    fn landmarks_in_other_units_than_the_surfaces_are_refused() {
+        let atlas = Anatomy::default_right().unwrap();
+        let own = atlas.landmarks();
+        let parts: Vec<(PartKind, TriMesh)> =
+            ossicle_surfaces(&PatientAnatomy::plain(atlas.clone()))
+                .into_iter()
+                .zip(Ossicle::ALL)
+                .map(|(m, o)| (PartKind::Ossicle(o), m))
+                .collect();
+        for factor in [1.0, 1000.0, 0.001] {
+            let chain = ChainAnatomy {
+                name: "chain".into(),
+                parts: parts.clone(),
+                landmarks: Landmarks::from_points(own.points().map(|p| p * factor)),
+                side: crate::atlas::Side::Right,
+                variation: None,
+                articulation: None,
+                proposed: None,
+                notes: Vec::new(),
+            };
+            let placed = MeshChain::place(&chain, atlas.clone(), false);
+            if factor == 1.0 {
+                assert!(placed.is_ok());
+            } else {
+                let err = placed.err().map(|e| e.to_string()).unwrap_or_default();
+                assert!(
+                    err.contains("times as far apart as the atlas's; expected 0.5 to 2"),
+                    "{factor}: {err}"
                 );
             }
         }
