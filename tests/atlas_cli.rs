@@ -15,7 +15,7 @@ use otoatlas::atlas::model::sets;
 use otoatlas::atlas::{Atlas, Part, default_atlas, read_atlas, write_atlas};
 use otoatlas::mesh::io::VolumeMesh;
 use otoatlas::mesh::io::gmsh::write_msh;
-use otoatlas::mesh::io::ply::read_ply;
+use otoatlas::mesh::io::ply::{read_ply, write_ply};
 use otoatlas::mesh::io::vtu::{VtuEncoding, read_vtu, write_vtu};
 use serde_json::{Value, json};
 
@@ -613,6 +613,39 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
     assert_eq!(rebuilt["membrane_triangles"], 0);
     let bones = read_atlas(&tmp.path().join("bones")).unwrap();
     assert!(bones.fem_model(bones.nodes(), None, true).is_ok());
+
+    // the same bones in µm: refused by their size, before a lattice is sized by it
+    std::fs::create_dir(exp.join("um")).unwrap();
+    for bone in ["malleus", "incus", "stapes"] {
+        let (mut mesh, _) = read_ply(&exp.join(format!("surfaces/{bone}.ply"))).unwrap();
+        mesh.vertices.iter_mut().for_each(|p| *p *= 1000.0);
+        write_ply(
+            &exp.join(format!("um/{bone}.ply")),
+            &mesh,
+            &Default::default(),
+        )
+        .unwrap();
+    }
+    let out = run_in(
+        tmp.path(),
+        &[
+            "atlas",
+            "build",
+            "--surfaces",
+            "exp/um",
+            "--landmarks",
+            "lm.json",
+            "--out",
+            "um",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("a chain spanning 4 to 40 mm") && err.contains("not µm"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("um").exists());
 
     // an open surface (the eardrum) bounds no volume: rejected, naming the file
     std::fs::copy(

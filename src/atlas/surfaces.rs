@@ -12,8 +12,7 @@ use super::format::{AtlasError, default_atlas, validate};
 use super::import::{landmarks_and_side, tie_landmarks};
 use super::mapping::material_library;
 use super::model::{Atlas, Part, RegionInfo};
-use crate::ear::Side;
-use crate::ear::structure_names;
+use crate::ear::{CHAIN_SPAN_MM, Side, is_chain_span, span_mm, structure_names};
 use crate::io_util::sha256_hex;
 use crate::mesh::io::{read_surface, surface_files};
 use crate::mesh::mesher::{MesherParams, SurfaceDomain, mesh_domain};
@@ -67,6 +66,18 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
         .iter()
         .map(|f| read_surface(f))
         .collect::<Result<Vec<_>, _>>()?;
+    let span = span_mm(surfaces.iter().flat_map(|m| &m.vertices));
+    if !is_chain_span(span) {
+        return Err(AtlasError::invalid(
+            req.dir,
+            "surfaces",
+            format!(
+                "a chain spanning {} to {} mm (its bounding box's diagonal; a real chain about 13): coordinates in mm, not µm, cm, m or voxel indices",
+                CHAIN_SPAN_MM.0, CHAIN_SPAN_MM.1
+            ),
+            format!("{span:.4}"),
+        ));
+    }
     let domain = SurfaceDomain::new(&surfaces).map_err(|e| {
         let file = match &e {
             crate::mesh::mesher::SurfaceDomainError::NotClosed { region, .. }

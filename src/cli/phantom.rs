@@ -65,7 +65,10 @@ pub struct PhantomArgs {
     /// Point-spread function FWHM in mm (default 0.25).
     #[arg(long, value_name = "MM")]
     pub blur: Option<f64>,
-    /// A real ossicular chain (surfaces and landmarks) to image instead of the atlas.
+    /// A real ossicular chain to image instead of the atlas: a folder of closed surfaces in mm
+    /// (.ply, .stl, .obj, or a .vtu's triangles or tetrahedra) named for the malleus, incus and
+    /// stapes, or one fused chain; with a landmark file stating the side, or the landmarks and
+    /// side are proposed.
     #[arg(long, value_name = "CHAIN_DIR")]
     pub anatomy: Option<PathBuf>,
     /// Vary the real chain's shape per case: stretched by 0.87-1.15 along three random

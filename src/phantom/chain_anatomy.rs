@@ -17,7 +17,9 @@ use super::truth::ossicle_surfaces;
 use super::variability::Ossicle;
 use crate::atlas::{Anatomy, Side};
 use crate::ear::Landmarks;
-use crate::ear::{file_stem, read_landmarks, structure_names};
+use crate::ear::{
+    CHAIN_SPAN_MM, file_stem, is_chain_span, read_landmarks, span_mm, structure_names,
+};
 use crate::mesh::TriMesh;
 use crate::mesh::io::{read_surface, surface_extension, surface_files};
 
@@ -28,9 +30,6 @@ const EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
 /// The structure names a chain folder's files may have ([`structure_names`]).
 const KNOWN_NAMES: [&str; 6] = ["malleus", "incus", "stapes", "chain", "ossicles", "eardrum"];
-/// The bounding-box diagonal a chain's surfaces may have [mm]: the real chains at hand span
-/// 13.0 and 13.6 mm, ossicle sizes vary by about ±10 %; what lies outside is in other units.
-const CHAIN_SPAN_MM: (f64, f64) = (4.0, 40.0);
 /// How far apart the chain's landmarks may lie, relative to the atlas's (the landmark fit's
 /// scale; SOFA's chain 1.03, the CT chain 1.19, their random variations 0.94-1.37): beyond it
 /// the landmarks are in other units than the surfaces, or another chain's, and the scene
@@ -278,15 +277,8 @@ impl ChainAnatomy {
             }
             parts.push((kind, read_part(&path, &mut notes)?));
         }
-        let (lo, hi) = parts.iter().flat_map(|(_, m)| &m.vertices).fold(
-            (
-                Vector3::repeat(f64::INFINITY),
-                Vector3::repeat(f64::NEG_INFINITY),
-            ),
-            |(lo, hi), p| (lo.inf(&p.coords), hi.sup(&p.coords)),
-        );
-        let span_mm = (hi - lo).norm();
-        if !(CHAIN_SPAN_MM.0..=CHAIN_SPAN_MM.1).contains(&span_mm) {
+        let span_mm = span_mm(parts.iter().flat_map(|(_, m)| &m.vertices));
+        if !is_chain_span(span_mm) {
             return Err(ChainError::Span {
                 dir: dir.to_path_buf(),
                 span_mm,
