@@ -614,6 +614,27 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
     let bones = read_atlas(&tmp.path().join("bones")).unwrap();
     assert!(bones.fem_model(bones.nodes(), None, true).is_ok());
 
+    // a build from `surfaces` that is refused (exit 2, nothing written); its stderr
+    let refused = |surfaces: &str, out: &str| {
+        let run = run_in(
+            tmp.path(),
+            &[
+                "atlas",
+                "build",
+                "--surfaces",
+                surfaces,
+                "--landmarks",
+                "lm.json",
+                "--out",
+                out,
+            ],
+        );
+        let err = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert_eq!(run.status.code(), Some(2), "{err}");
+        assert!(!tmp.path().join(out).exists(), "{out}");
+        err
+    };
+
     // the same bones in µm: refused by their size, before a lattice is sized by it
     std::fs::create_dir(exp.join("um")).unwrap();
     for bone in ["malleus", "incus", "stapes"] {
@@ -626,26 +647,11 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
         )
         .unwrap();
     }
-    let out = run_in(
-        tmp.path(),
-        &[
-            "atlas",
-            "build",
-            "--surfaces",
-            "exp/um",
-            "--landmarks",
-            "lm.json",
-            "--out",
-            "um",
-        ],
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused("exp/um", "um");
     assert!(
         err.contains("a chain spanning 4 to 40 mm") && err.contains("not µm"),
         "{err}"
     );
-    assert!(!tmp.path().join("um").exists());
 
     // an open surface (the eardrum) bounds no volume: rejected, naming the file
     std::fs::copy(
@@ -653,21 +659,7 @@ fn build_from_the_exported_bone_surfaces_keeps_their_volumes() {
         exp.join("surfaces/stapes.ply"),
     )
     .unwrap();
-    let out = run_in(
-        tmp.path(),
-        &[
-            "atlas",
-            "build",
-            "--surfaces",
-            "exp/surfaces",
-            "--landmarks",
-            "lm.json",
-            "--out",
-            "bad",
-        ],
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused("exp/surfaces", "bad");
     assert!(
         err.contains("stapes.ply") && err.contains("closed"),
         "{err}"

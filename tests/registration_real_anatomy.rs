@@ -750,16 +750,7 @@ fn a_chain_folder_without_landmarks_gets_them_proposed_by_the_atlas() {
             record.other_side_mm > record.mean_distance_mm + 0.2,
             "{name}: {record:?}"
         );
-        for (p, g) in proposed
-            .landmarks
-            .points()
-            .iter()
-            .zip(given.landmarks.points().iter())
-        {
-            let off = (p - g).norm();
-            println!("{name}: proposed {p:?}, picked {g:?}: {off:.3} mm");
-            assert!(off < 0.4, "{name}: {off:.3} mm");
-        }
+        assert_near_the_picks(name, &proposed.landmarks, &given.landmarks);
         if name == "sofa" {
             let out = otoatlas(&[
                 "phantom",
@@ -820,14 +811,18 @@ fn sofas_published_folder_is_a_chain_folder_as_it_is() {
     );
     assert!(chain.proposed.is_some(), "{notes}");
     assert_eq!(Some(chain.side), picks.side);
-    for (p, g) in chain
-        .landmarks
-        .points()
-        .iter()
-        .zip(picks.landmarks.points().iter())
-    {
+    assert_near_the_picks("SOFA's folder", &chain.landmarks, &picks.landmarks);
+}
+
+/// Each proposed landmark within 0.4 mm of its pick (printed).
+fn assert_near_the_picks(
+    name: &str,
+    proposed: &otoatlas::ear::Landmarks,
+    picked: &otoatlas::ear::Landmarks,
+) {
+    for (p, g) in proposed.points().iter().zip(picked.points().iter()) {
         let off = (p - g).norm();
-        println!("SOFA's folder: proposed {p:?}, picked {g:?}: {off:.3} mm");
-        assert!(off < 0.4, "{off:.3} mm");
+        println!("{name}: proposed {p:?}, picked {g:?}: {off:.3} mm");
+        assert!(off < 0.4, "{name}: {off:.3} mm");
     }
 }
