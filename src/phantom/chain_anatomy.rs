@@ -21,11 +21,8 @@ use crate::ear::{
     CHAIN_SPAN_MM, file_stem, is_chain_span, read_landmarks, span_mm, structure_names,
 };
 use crate::mesh::TriMesh;
-use crate::mesh::io::{read_surface, surface_extension, surface_files};
+use crate::mesh::io::{SURFACE_EXTENSIONS, read_surface, surface_extension, surface_files};
 
-/// Surface file names per part, tried in this order (PLY, STL, OBJ, then a VTU's triangles or
-/// the boundary of its tetrahedra).
-const EXTENSIONS: [&str; 4] = ["ply", "stl", "obj", "vtu"];
 /// Names a fused chain surface may have.
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
 /// The structure names a chain folder's files may have ([`structure_names`]).
@@ -143,17 +140,17 @@ pub enum ChainError {
 }
 
 /// The chain folder's surface files by the structure their names name
-/// ([`structure_names`]): the folder's own before its `surfaces/`, and in one folder PLY
-/// before STL before OBJ for the same name.
+/// ([`structure_names`]): the folder's own before its `surfaces/`, and in one folder in the
+/// order of [`SURFACE_EXTENSIONS`] (PLY, STL, OBJ, VTU) for the same name.
 fn named_files(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>, ChainError> {
+    // `surface_files` lists only the readable extensions
     let rank = |p: &PathBuf| {
         let ext = surface_extension(p).unwrap_or_default();
-        EXTENSIONS.iter().position(|e| *e == ext)
+        SURFACE_EXTENSIONS.iter().position(|e| *e == ext)
     };
     let mut named: Vec<(String, PathBuf)> = Vec::new();
     for dir in dirs {
         let mut files = surface_files(dir).map_err(|e| ChainError::Read(e.to_string()))?;
-        files.retain(|p| rank(p).is_some());
         files.sort_by_key(rank);
         for (name, path) in structure_names(&files).into_iter().zip(files) {
             if !named.iter().any(|(n, _)| *n == name) {
