@@ -13,14 +13,12 @@
 //! shift is solved directly by [`HarmonicSolver::solve`]. So every returned response satisfies
 //! the full system to the tolerance (or is the direct solution), whatever the subspace.
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, c64};
-use nalgebra::Vector3;
+use faer::c64;
+use nalgebra::{DMatrix, DVector, Vector3};
 use rayon::prelude::*;
 
 use super::error::FemError;
 use super::harmonic::{ComplexDisplacement, HarmonicSolver};
-use super::vector_state::DenseKernels;
 
 /// How far the reduced model is trusted and how it grows.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -176,19 +174,19 @@ impl Basis {
         let stiffness = c64::new(1.0, omega * beta);
         let mass = c64::new(-omega * omega, omega * alpha);
         let damping = c64::new(0.0, omega);
-        let a = Mat::<c64>::from_fn(r, r, |i, j| {
+        // a few dozen unknowns: nalgebra's LU, not faer's, whose blocked products reserve a
+        // packing buffer of twice the L3 per thread (`fem::variant`), which a process under
+        // an address-space limit cannot have
+        let a = DMatrix::<c64>::from_fn(r, r, |i, j| {
             stiffness * self.kr[i][j] + mass * self.mr[i][j] + damping * self.cr[i][j]
         });
-        let b = Mat::<c64>::from_fn(r, 1, |i, _| c64::new(self.fr[i], 0.0));
-        let q = {
-            let _clean = DenseKernels::parallel();
-            a.partial_piv_lu().solve(&b)
-        };
+        let b = DVector::<c64>::from_fn(r, |i, _| c64::new(self.fr[i], 0.0));
+        let q = a.lu().solve(&b)?;
         let n = force.len();
         let mut u = vec![c64::new(0.0, 0.0); n];
         let mut au = vec![c64::new(0.0, 0.0); n];
         for j in 0..r {
-            let qj = q[(j, 0)];
+            let qj = q[j];
             if !(qj.re.is_finite() && qj.im.is_finite()) {
                 return None;
             }
