@@ -41,12 +41,29 @@ pub fn manifold_groups() -> Vec<Vec<u16>> {
     ]
 }
 
+/// The groups that may share no node: each bone's regions (bones meet only through their
+/// joints; a node shared by two would bond them, and leave one of them out of the package
+/// check's rigid bodies).
+pub fn apart_groups() -> Vec<Vec<u16>> {
+    [Bone::Malleus, Bone::Incus, Bone::Stapes]
+        .into_iter()
+        .map(|bone| {
+            Region::ALL
+                .iter()
+                .filter(|r| r.bone() == Some(bone))
+                .map(|r| r.label())
+                .collect()
+        })
+        .collect()
+}
+
 /// Meshes the anatomy's volumetric regions at the target edge length (mm).
 pub fn mesh_anatomy(anatomy: &Anatomy, target_edge_mm: f64) -> Result<MeshOutput, MesherError> {
     let params = MesherParams {
         target_edge_mm,
         thin_regions: thin_regions(),
         manifold_groups: manifold_groups(),
+        apart_groups: apart_groups(),
         ..MesherParams::default()
     };
     mesh_domain(anatomy, &params)
@@ -65,6 +82,7 @@ mod tests {
         let out = mesh_anatomy(&anatomy, DEFAULT_EDGE_MM).unwrap();
         let m = &out.mesh;
         assert_eq!(out.report.repair.defects_left, 0);
+        assert_eq!(out.report.repair.shared_nodes_left, 0);
         assert!(
             (4_000..=8_000).contains(&m.tets.len()),
             "{} tets",

@@ -12,7 +12,9 @@
 //!    `h = target_edge / 0.911`, so the mean lattice edge equals the target edge length.
 //! 2. `label`: each tet takes the label at its centroid; regions listed as thin win a tet if
 //!    they own any of five sample points inside it.
-//! 3. `repair`: tets are relabelled until every region's boundary is a 2-manifold.
+//! 3. `repair`: tets are relabelled until every region's boundary is a 2-manifold; where
+//!    groups of regions must stay apart ([`MesherParams::apart_groups`]), `separate` takes
+//!    back the tets by which two of them share a node, and the repair runs again.
 //! 4. `peel`: tets that would lie flat on the outer surface once snapped go to the outside
 //!    (then `repair` runs again).
 //! 5. `snap`: nodes on a region boundary move onto the interface (Newton projection on
@@ -39,6 +41,7 @@ mod label;
 pub mod lattice;
 mod peel;
 mod repair;
+mod separate;
 mod snap;
 mod surface_domain;
 
@@ -70,6 +73,9 @@ pub struct MesherParams {
     /// Unions of regions whose boundary must be a manifold too (the regions of one bone;
     /// all regions for the whole domain); repaired by adding to the union (see `repair`).
     pub manifold_groups: Vec<Vec<u16>>,
+    /// Groups of regions that may share no node with one another (the regions of each bone:
+    /// bones meet only through their joints); see `separate`.
+    pub apart_groups: Vec<Vec<u16>>,
 }
 
 impl Default for MesherParams {
@@ -81,6 +87,7 @@ impl Default for MesherParams {
             thin_regions: Vec::new(),
             max_lattice_nodes: 20_000_000,
             manifold_groups: Vec::new(),
+            apart_groups: Vec::new(),
         }
     }
 }
@@ -152,9 +159,9 @@ fn settle(
     lattice: &Lattice,
     adj: &NodeTets,
     labels: &mut [u16],
-    thin: &[u16],
-    groups: &[Vec<u16>],
+    params: &MesherParams,
 ) -> RepairOutcome {
+    let (thin, groups) = (&params.thin_regions, &params.manifold_groups);
     let mut out = RepairOutcome::default();
     for _ in 0..4 {
         let r = repair::make_manifold(lattice, adj, labels, thin, groups, 50);
@@ -168,6 +175,31 @@ fn settle(
         }
     }
     out
+}
+
+/// Keeps the apart groups apart (`separate`) on the settled labels, settling again after each
+/// separation, until no node is shared (at most a few rounds); adds what it did to `repair`.
+fn keep_apart(
+    lattice: &Lattice,
+    adj: &NodeTets,
+    labels: &mut [u16],
+    params: &MesherParams,
+    repair: &mut RepairOutcome,
+) {
+    let n_nodes = lattice.nodes.len();
+    for _ in 0..4 {
+        let separated = separate::separate(adj, n_nodes, labels, &params.apart_groups);
+        if separated == 0 {
+            break;
+        }
+        repair.separated += separated;
+        let again = settle(lattice, adj, labels, params);
+        repair.relabelled += again.relabelled;
+        repair.sweeps += again.sweeps;
+        repair.cavities_filled += again.cavities_filled;
+        repair.defects_left = again.defects_left;
+    }
+    repair.shared_nodes_left = separate::shared_nodes(adj, n_nodes, labels, &params.apart_groups);
 }
 
 /// Meshes every region of `domain` into one conforming, region-labelled tet mesh.
@@ -211,8 +243,7 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
     let mut labels = label::label_tets(domain, &lattice, &params.thin_regions);
     let adj = NodeTets::new(lattice.nodes.len(), &lattice.tets);
     let thin = &params.thin_regions;
-    let groups = &params.manifold_groups;
-    let mut repair = settle(&lattice, &adj, &mut labels, thin, groups);
+    let mut repair = settle(&lattice, &adj, &mut labels, params);
     let mut targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
     let peeled = peel::peel_flat_caps(
         &lattice.nodes,
@@ -224,11 +255,17 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
         thin,
     );
     if peeled > 0 {
-        let again = settle(&lattice, &adj, &mut labels, thin, groups);
+        let again = settle(&lattice, &adj, &mut labels, params);
         repair.relabelled += again.relabelled;
         repair.sweeps += again.sweeps;
         repair.cavities_filled += again.cavities_filled;
         repair.defects_left = again.defects_left;
+        targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
+    }
+    // after the peel, which only takes tets away, so that a mesh with no shared node is the
+    // one it would be without the groups
+    keep_apart(&lattice, &adj, &mut labels, params, &mut repair);
+    if repair.separated > 0 {
         targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
     }
     let mut positions = lattice.nodes.clone();

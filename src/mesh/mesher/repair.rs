@@ -32,6 +32,11 @@ pub struct RepairOutcome {
     pub defects_left: usize,
     /// Outside tets of small enclosed voids given a label (`cavity`).
     pub cavities_filled: usize,
+    /// Tets taken from a group of regions that shared a node with another group
+    /// (`MesherParams::apart_groups`, `separate`).
+    pub separated: usize,
+    /// Nodes still shared by two apart groups after the last round (0 on success).
+    pub shared_nodes_left: usize,
 }
 
 enum Defect {
