@@ -193,11 +193,7 @@ fn keep_apart(
             break;
         }
         repair.separated += separated;
-        let again = settle(lattice, adj, labels, params);
-        repair.relabelled += again.relabelled;
-        repair.sweeps += again.sweeps;
-        repair.cavities_filled += again.cavities_filled;
-        repair.defects_left = again.defects_left;
+        repair.absorb(settle(lattice, adj, labels, params));
     }
     repair.shared_nodes_left = separate::shared_nodes(adj, n_nodes, labels, &params.apart_groups);
 }
@@ -255,11 +251,7 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
         thin,
     );
     if peeled > 0 {
-        let again = settle(&lattice, &adj, &mut labels, params);
-        repair.relabelled += again.relabelled;
-        repair.sweeps += again.sweeps;
-        repair.cavities_filled += again.cavities_filled;
-        repair.defects_left = again.defects_left;
+        repair.absorb(settle(&lattice, &adj, &mut labels, params));
         targets = snap::interface_targets(domain, &lattice.nodes, &labels, &adj, h);
     }
     // after the peel, which only takes tets away, so that a mesh with no shared node is the

@@ -39,6 +39,16 @@ pub struct RepairOutcome {
     pub shared_nodes_left: usize,
 }
 
+impl RepairOutcome {
+    /// Adds a later repair of the same labels: its counts summed, its defects the ones left.
+    pub fn absorb(&mut self, later: RepairOutcome) {
+        self.relabelled += later.relabelled;
+        self.sweeps += later.sweeps;
+        self.cavities_filled += later.cavities_filled;
+        self.defects_left = later.defects_left;
+    }
+}
+
 enum Defect {
     None,
     /// Ring around edge `v`–`w` switches more than twice.
