@@ -24,19 +24,17 @@ pub fn thin_regions() -> Vec<u16> {
         .collect()
 }
 
+/// The labels of `bone`'s regions.
+fn bone_labels(bone: Bone) -> Vec<u16> {
+    bone.regions().iter().map(|r| r.label()).collect()
+}
+
 /// The unions whose boundary must be a manifold besides each region's: each bone's regions
 /// (its exported surface) and all regions (the whole chain).
 pub fn manifold_groups() -> Vec<Vec<u16>> {
-    let of = |bone: Bone| -> Vec<u16> {
-        Region::ALL
-            .iter()
-            .filter(|r| r.bone() == Some(bone))
-            .map(|r| r.label())
-            .collect()
-    };
     vec![
-        of(Bone::Malleus),
-        of(Bone::Incus),
+        bone_labels(Bone::Malleus),
+        bone_labels(Bone::Incus),
         Region::ALL.iter().map(|r| r.label()).collect(),
     ]
 }
@@ -47,13 +45,7 @@ pub fn manifold_groups() -> Vec<Vec<u16>> {
 pub fn apart_groups() -> Vec<Vec<u16>> {
     [Bone::Malleus, Bone::Incus, Bone::Stapes]
         .into_iter()
-        .map(|bone| {
-            Region::ALL
-                .iter()
-                .filter(|r| r.bone() == Some(bone))
-                .map(|r| r.label())
-                .collect()
-        })
+        .map(bone_labels)
         .collect()
 }
 

@@ -186,6 +186,10 @@ fn keep_apart(
     params: &MesherParams,
     repair: &mut RepairOutcome,
 ) {
+    // fewer than two groups: nothing to keep apart, and no pass over the lattice
+    if params.apart_groups.len() < 2 {
+        return;
+    }
     let n_nodes = lattice.nodes.len();
     for _ in 0..4 {
         let separated = separate::separate(adj, n_nodes, labels, &params.apart_groups);

@@ -15,13 +15,27 @@ use std::collections::BTreeMap;
 
 use super::lattice::NodeTets;
 
+/// The group of each label (indexed by label; none for a label of no group).
+fn group_table(groups: &[Vec<u16>]) -> Vec<Option<usize>> {
+    let size = groups
+        .iter()
+        .flatten()
+        .max()
+        .map_or(0, |&l| usize::from(l) + 1);
+    let mut table = vec![None; size];
+    for (g, labels) in groups.iter().enumerate() {
+        for &l in labels {
+            table[usize::from(l)] = Some(g);
+        }
+    }
+    table
+}
+
 /// One pass over the nodes in order; returns the number of tets relabelled (0: no node
 /// carries tets of two groups).
 pub fn separate(adj: &NodeTets, n_nodes: usize, labels: &mut [u16], groups: &[Vec<u16>]) -> usize {
-    if groups.len() < 2 {
-        return 0;
-    }
-    let group_of = |label: u16| groups.iter().position(|g| g.contains(&label));
+    let table = group_table(groups);
+    let group_of = |label: u16| table.get(usize::from(label)).copied().flatten();
     let mut relabelled = 0;
     let mut counts = vec![0usize; groups.len()];
     for v in 0..n_nodes {
@@ -68,7 +82,8 @@ pub fn separate(adj: &NodeTets, n_nodes: usize, labels: &mut [u16], groups: &[Ve
 
 /// The nodes that carry tets of two or more groups.
 pub fn shared_nodes(adj: &NodeTets, n_nodes: usize, labels: &[u16], groups: &[Vec<u16>]) -> usize {
-    let group_of = |label: u16| groups.iter().position(|g| g.contains(&label));
+    let table = group_table(groups);
+    let group_of = |label: u16| table.get(usize::from(label)).copied().flatten();
     (0..n_nodes)
         .filter(|&v| {
             let mut first = None;
