@@ -51,6 +51,7 @@ pub(crate) fn score(case: &Path, out: &Path, extra: &[&str]) -> Scored {
         .iter()
         .map(|v| v.as_f64().unwrap())
         .fold(f64::INFINITY, f64::min);
+    where_the_distances_lie(&m, spacing);
     let structures = m["scores"]
         .as_object()
         .expect("a phantom has a segmentation")
@@ -82,6 +83,51 @@ pub(crate) fn score(case: &Path, out: &Path, extra: &[&str]) -> Scored {
         side: m["side"].as_str().unwrap().to_string(),
         structures,
         landmark_error_mm,
+    }
+}
+
+/// `metrics.json`'s per-region summary (docs/metrics.md, "Where the distances lie"): each
+/// structure's regions are its own (an ossicle's regions, the chain's bones and joints, the
+/// eardrum's two parts), "far" is two voxels, and a structure within its HD95 bound has little
+/// far area (HD95 pools both directions: at most about 10 % of the registered side's).
+fn where_the_distances_lie(m: &Value, spacing: f64) {
+    for (name, s) in m["scores"].as_object().unwrap() {
+        let far = s["far_mm"].as_f64().unwrap();
+        assert!((far - 2.0 * spacing).abs() < 1e-12, "{name}: far {far}");
+        let regions = s["by_region"].as_object().unwrap();
+        let prefixes: &[&str] = match name.as_str() {
+            "malleus" => &["malleus_"],
+            "incus" => &["incus_"],
+            "stapes" => &["stapes"],
+            "eardrum" => &["pars_"],
+            _ => &[
+                "malleus_",
+                "incus_",
+                "stapes",
+                "incudomalleolar",
+                "incudostapedial",
+            ],
+        };
+        assert!(!regions.is_empty(), "{name}");
+        let (mut area, mut far_area) = (0.0, 0.0);
+        for (region, d) in regions {
+            assert!(
+                prefixes.iter().any(|p| region.starts_with(p)),
+                "{name}: region {region}"
+            );
+            let a = d["area_mm2"].as_f64().unwrap();
+            assert!(a > 0.0, "{name} {region}");
+            area += a;
+            far_area += a
+                * (d["far_outside_share"].as_f64().unwrap()
+                    + d["far_inside_share"].as_f64().unwrap());
+        }
+        if s["registered"]["hd95"].as_f64().unwrap() <= 2.0 * spacing {
+            assert!(
+                far_area <= 0.1 * area,
+                "{name}: far {far_area} of {area} mm²"
+            );
+        }
     }
 }
 

@@ -30,6 +30,6 @@ pub use anatomy::{Anatomy, DEFAULT_TOML};
 pub use build::{BuildError, build_atlas};
 pub use eardrum::Eardrum;
 pub use format::{AtlasError, default_atlas, load_atlas, read_atlas, write_atlas};
-pub use model::{Atlas, Part};
+pub use model::{Atlas, LabelledTriangles, Part};
 pub use region::{Bone, MembraneRegion, Region};
 pub use spec::{AnatomyError, AnatomySpec, Side};

@@ -225,6 +225,14 @@ pub struct Atlas {
     pub provenance: BTreeMap<String, String>,
 }
 
+/// Surface triangles over an atlas's mesh nodes, each with the region it bounds (a membrane
+/// triangle's own region, or the tetrahedron's under a boundary triangle).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LabelledTriangles {
+    pub triangles: Vec<[u32; 3]>,
+    pub regions: Vec<u16>,
+}
+
 impl Atlas {
     pub fn nodes(&self) -> &[Point3<f64>] {
         &self.mesh.tets.nodes
@@ -256,22 +264,38 @@ impl Atlas {
     /// The outward surface of a part, as triangles over the mesh nodes: the boundary of its
     /// tetrahedra for an ossicle, its membrane triangles (facing laterally) for the eardrum.
     pub fn part_triangles(&self, part: Part) -> Vec<[u32; 3]> {
+        self.part_faces(part).triangles
+    }
+
+    /// [`Atlas::part_triangles`] with the region of each triangle.
+    pub fn part_faces(&self, part: Part) -> LabelledTriangles {
         let labels = self.labels_of(part);
-        let membrane: Vec<[u32; 3]> = self
+        let (triangles, regions): (Vec<[u32; 3]>, Vec<u16>) = self
             .mesh
             .triangles
             .iter()
             .zip(&self.mesh.triangle_regions)
             .filter(|(_, r)| labels.contains(r))
-            .map(|(t, _)| *t)
-            .collect();
-        if !membrane.is_empty() {
-            return membrane;
+            .map(|(t, r)| (*t, *r))
+            .unzip();
+        if !triangles.is_empty() {
+            return LabelledTriangles { triangles, regions };
         }
-        self.mesh
-            .tets
-            .boundary(BoundaryOf::Regions(&labels))
-            .node_triangles()
+        self.boundary_faces(&labels)
+    }
+
+    /// The boundary of the tetrahedra of `labels`, each triangle with its tetrahedron's region.
+    fn boundary_faces(&self, labels: &[u16]) -> LabelledTriangles {
+        let tets = &self.mesh.tets;
+        let boundary = tets.boundary(BoundaryOf::Regions(labels));
+        LabelledTriangles {
+            regions: boundary
+                .triangle_tets
+                .iter()
+                .map(|&t| tets.regions[t as usize])
+                .collect(),
+            triangles: boundary.node_triangles(),
+        }
     }
 
     /// The surface of a part with the nodes at `nodes`, as a compact triangle mesh.
@@ -286,6 +310,11 @@ impl Atlas {
     /// each meets its joint, which lie inside such a solid. Empty when the atlas has no
     /// ossicle.
     pub fn chain_surface(&self, nodes: &[Point3<f64>]) -> TriMesh {
+        TriMesh::compacted(&self.chain_faces().triangles, nodes)
+    }
+
+    /// The triangles of [`Atlas::chain_surface`] over the mesh nodes, each with its region.
+    pub fn chain_faces(&self) -> LabelledTriangles {
         let joints: Vec<&str> = Region::JOINTS.iter().map(|r| r.name()).collect();
         let labels: Vec<u16> = self
             .regions
@@ -294,14 +323,9 @@ impl Atlas {
             .map(|r| r.label)
             .collect();
         if labels.is_empty() {
-            return TriMesh::compacted(&[], nodes);
+            return LabelledTriangles::default();
         }
-        let triangles = self
-            .mesh
-            .tets
-            .boundary(BoundaryOf::Regions(&labels))
-            .node_triangles();
-        TriMesh::compacted(&triangles, nodes)
+        self.boundary_faces(&labels)
     }
 
     /// The flexural rigidity D = E h_b³/(12(1 − ν²)) (µN·mm) of each membrane triangle, in

@@ -28,6 +28,8 @@ pub struct TetMesh {
 pub struct Boundary {
     pub surface: TriMesh,
     pub node_of_vertex: Vec<u32>,
+    /// For each triangle, the tetrahedron it bounds (so its region).
+    pub triangle_tets: Vec<u32>,
 }
 
 impl Boundary {
@@ -218,6 +220,7 @@ impl TetMesh {
                     })
                 });
                 out.surface.triangles.push(tri);
+                out.triangle_tets.push(t as u32);
             }
         }
         out

@@ -9,10 +9,12 @@
 //! * Signs come from the reference's angle-weighted pseudonormals (`mesh::spatial`,
 //!   Bærentzen & Aanæs 2005); positive = test outside the reference.
 //! * Both surfaces are sampled by area (`sampling`), each sample weighted by its area;
-//!   statistics follow `stats`; the per-vertex deviation map is coloured by `colormap`.
+//!   statistics follow `stats`; the per-vertex deviation map is coloured by `colormap` and
+//!   summed per triangle label (the atlas region) by `by_label`.
 //!
 //! Every result is deterministic: samples depend only on the seed, sums run in a fixed order.
 
+pub mod by_label;
 pub mod colormap;
 pub mod error;
 pub mod sampling;
@@ -24,6 +26,7 @@ use rayon::prelude::*;
 pub use crate::mesh::spatial::{
     Bvh, ClosestHit, Feature, Pseudonormals, SignedSurface, closest_point_on_triangle,
 };
+pub use by_label::{LabelDeviation, deviation_by_label};
 pub use colormap::ColourRange;
 pub use error::MeshDevError;
 pub use sampling::{MAX_SAMPLES, Samples, Sampling, sample_surface};

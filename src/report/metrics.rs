@@ -11,7 +11,7 @@ use crate::atlas::Part;
 use crate::ear::{Landmarks, Side};
 use crate::image::ImageRecord;
 use crate::mechanics::Condition;
-use crate::meshdev::SurfaceDistances;
+use crate::meshdev::{LabelDeviation, SurfaceDistances};
 use crate::register::atlas_fit::DeformRecord;
 use crate::register::deform::{DeformStatus, IterationStats};
 use crate::register::landmarks::LandmarkWarning;
@@ -139,6 +139,14 @@ pub struct StructureMetrics {
     pub rigid: Option<SurfaceDistances>,
     /// 1 − MASD registered / MASD rigid.
     pub masd_improvement: Option<f64>,
+    /// Where the registered surface's distances lie: its deviation map summed per atlas region
+    /// (docs/metrics.md, "Where the distances lie"); empty in records written before it.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub by_region: BTreeMap<String, LabelDeviation>,
+    /// The distance beyond which `by_region` counts an area as far: two voxels, the HD95
+    /// target \[mm\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub far_mm: Option<f64>,
 }
 
 impl StructureMetrics {

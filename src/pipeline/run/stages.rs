@@ -211,6 +211,8 @@ fn scores_of(
                 registered: r.distances,
                 rigid: before,
                 masd_improvement: improvement,
+                by_region: r.by_region.clone(),
+                far_mm: Some(r.far_mm),
             };
             (name.clone(), metrics)
         })

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use super::{Accuracy, CaseReportInput, mm};
 use crate::atlas::Part;
-use crate::meshdev::ColourRange;
+use crate::meshdev::{ColourRange, LabelDeviation};
 use crate::report::html::{Figure, FigureContent, Page};
 use crate::report::metrics::{HD95_TARGET_MM, MASD_TARGET_MM, StructureMetrics, anatomical_order};
 use crate::report::plot::histogram_svg;
@@ -89,6 +89,77 @@ pub(super) fn metrics_table(
              (one voxel). Targets per ossicle: MASD ≤ {MASD_TARGET_MM} mm, HD95 ≤ \
              {HD95_TARGET_MM} mm."
         ),
+        Some("note"),
+    );
+}
+
+/// Where the registered surfaces' distances lie: per structure, the atlas regions holding area
+/// farther than two voxels from the segmentation, most first (all regions of a structure
+/// with none far are summed in one line).
+pub(super) fn far_regions_table(
+    page: &mut Page,
+    scores: Option<&BTreeMap<String, StructureMetrics>>,
+) {
+    let Some(scores) = scores else {
+        return;
+    };
+    let mut rows = Vec::new();
+    for (name, s) in anatomical_order(scores) {
+        let Some(far) = s.far_mm else {
+            continue;
+        };
+        let mut regions: Vec<_> = s.by_region.iter().collect();
+        let far_area = |d: &LabelDeviation| d.area_mm2 * (d.far_outside_share + d.far_inside_share);
+        regions.sort_by(|a, b| far_area(b.1).total_cmp(&far_area(a.1)).then(a.0.cmp(b.0)));
+        let total: f64 = regions.iter().map(|(_, d)| d.area_mm2).sum();
+        for (region, d) in regions.iter().filter(|(_, d)| far_area(d) > 0.0) {
+            rows.push(vec![
+                name.to_string(),
+                region.to_string(),
+                format!("{:.2}", d.area_mm2),
+                mm(d.mean_signed_mm),
+                mm(d.max_abs_mm),
+                format!("{:.1} %", 100.0 * d.far_outside_share),
+                format!("{:.1} %", 100.0 * d.far_inside_share),
+                format!("{:.1} %", 100.0 * far_area(d) / total),
+            ]);
+        }
+        if regions.iter().all(|(_, d)| far_area(d) == 0.0) && !regions.is_empty() {
+            rows.push(vec![
+                name.to_string(),
+                format!("none beyond {} mm", mm(far)),
+                format!("{total:.2}"),
+                "–".into(),
+                "–".into(),
+                "0 %".into(),
+                "0 %".into(),
+                "0 %".into(),
+            ]);
+        }
+    }
+    if rows.is_empty() {
+        return;
+    }
+    page.heading("Where the distances lie");
+    page.table(
+        &[
+            "structure",
+            "atlas region",
+            "area (mm²)",
+            "mean signed (mm)",
+            "max |d| (mm)",
+            "far outside",
+            "far inside",
+            "of the structure's area",
+        ],
+        &rows,
+    );
+    page.paragraph(
+        "Each registered surface's signed distances summed over the atlas region each triangle \
+         bounds (docs/metrics.md, \"Where the distances lie\"): far is beyond two voxels, the \
+         HD95 target; outside = atlas surface outside the segmentation. A region far outside \
+         is atlas shape the image does not show; far inside, segmentation the atlas does not \
+         reach.",
         Some("note"),
     );
 }

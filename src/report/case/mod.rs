@@ -15,7 +15,7 @@ mod accuracy;
 mod mechanics;
 mod summary;
 
-use accuracy::{histograms, metrics_table};
+use accuracy::{far_regions_table, histograms, metrics_table};
 use mechanics::mechanics_section;
 use summary::{summary, verdict};
 
@@ -164,6 +164,7 @@ pub fn case_report_html(input: &CaseReportInput) -> Result<String, ReportError> 
     }
     summary(&mut page, input, &deform);
     metrics_table(&mut page, input, scores);
+    far_regions_table(&mut page, scores);
 
     page.heading("Slice overlays");
     let reference = match &input.accuracy {

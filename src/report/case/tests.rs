@@ -80,7 +80,16 @@ fn fixture() -> Fixture {
         "incus": {"registered": distances_json(0.033, 0.6, 0.007, 0.993),
                   "rigid": distances_json(0.113, 0.247, 0.007, 0.764), "masd_improvement": 0.708},
         "stapes": {"registered": distances_json(0.064, 0.235, 0.041, 0.926),
-                   "rigid": distances_json(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471},
+                   "rigid": distances_json(0.121, 0.388, 0.041, 0.796), "masd_improvement": 0.471,
+                   "far_mm": 0.5,
+                   "by_region": {
+                       "stapes": {"label": 7, "area_mm2": 17.0, "mean_signed_mm": 0.1,
+                                  "mean_abs_mm": 0.12, "max_abs_mm": 0.8,
+                                  "far_outside_share": 0.25, "far_inside_share": 0.05},
+                       "incudostapedial_joint": {"label": 9, "area_mm2": 1.0,
+                                  "mean_signed_mm": 0.01, "mean_abs_mm": 0.02,
+                                  "max_abs_mm": 0.1, "far_outside_share": 0.0,
+                                  "far_inside_share": 0.0}}},
         "eardrum": {"registered": distances_json(0.033, 0.137, 0.019, 0.974),
                     "rigid": null, "masd_improvement": null},
     }))
@@ -263,6 +272,12 @@ fn scored_case_shows_every_section_with_its_numbers() {
         .collect();
     assert!(at.windows(2).all(|w| w[0] < w[1]), "anatomical order");
     assert!(html.contains("Missing the targets (MASD ≤ 0.2 mm and HD95 ≤ 0.5 mm): incus."));
+    // where the distances lie: the stapes's far region, 17 × 0.3 of its 18 mm², and not the
+    // joint beside it, which has none
+    assert!(html.contains(
+        "<tr><td>stapes</td><td>stapes</td><td>17.00</td><td>0.100</td><td>0.800</td><td>25.0 %</td><td>5.0 %</td><td>28.3 %</td></tr>"
+    ));
+    assert!(!html.contains("<td>incudostapedial_joint</td>"));
     // four histograms and the convergence curve
     assert_eq!(html.matches("<svg").count(), 5);
     assert!(html.contains("99th percentile nodal update"));
@@ -294,6 +309,7 @@ fn without_a_segmentation_the_page_says_so_and_shows_the_atlas_contours() {
     assert!(html.contains("The case has no manual segmentation: no surface distances."));
     assert!(html.contains("The case has no manual segmentation: no distances."));
     assert!(!html.contains("<td>malleus</td>"));
+    assert!(!html.contains("Where the distances lie"));
     assert_eq!(
         html.matches("<svg").count(),
         1,
