@@ -31,19 +31,14 @@ pub struct LabelDeviation {
 
 /// Sums `deviation` (signed, per vertex of `surface`) per label of `labels` (one per triangle
 /// of `surface`), labels in ascending order; `far_mm` splits off the far shares. Triangles
-/// without area and labels without triangles are left out.
-///
-/// # Panics
-/// Never on matching inputs; a `labels` or `deviation` of the wrong length is a caller's bug
-/// (both come from the same surface), checked by `debug_assert`.
+/// without area, without a label (beyond `labels`' end) or with a vertex beyond
+/// `deviation`'s end are left out, and so are labels without triangles.
 pub fn deviation_by_label(
     surface: &TriMesh,
     deviation: &[f64],
     labels: &[u16],
     far_mm: f64,
 ) -> Vec<LabelDeviation> {
-    debug_assert_eq!(labels.len(), surface.triangles.len());
-    debug_assert_eq!(deviation.len(), surface.vertices.len());
     // (area, signed, abs, max, far outside, far inside) per label
     let mut sums: std::collections::BTreeMap<u16, [f64; 6]> = std::collections::BTreeMap::new();
     for (t, (triangle, &label)) in surface.triangles.iter().zip(labels).enumerate() {
