@@ -93,7 +93,8 @@ pub(crate) fn score(case: &Path, out: &Path, extra: &[&str]) -> Scored {
 fn where_the_distances_lie(m: &Value, spacing: f64) {
     for (name, s) in m["scores"].as_object().unwrap() {
         let far = s["far_mm"].as_f64().unwrap();
-        assert!((far - 2.0 * spacing).abs() < 1e-12, "{name}: far {far}");
+        // the image's spacing as stored (single precision in DICOM and NIfTI headers)
+        assert!((far - 2.0 * spacing).abs() < 1e-6, "{name}: far {far}");
         let regions = s["by_region"].as_object().unwrap();
         let prefixes: &[&str] = match name.as_str() {
             "malleus" => &["malleus_"],
