@@ -35,6 +35,14 @@ fn far_mm(tolerance_mm: f64) -> f64 {
     2.0 * tolerance_mm
 }
 
+impl StructureScore {
+    /// The distance beyond which `by_region` counts an area as far \[mm\]: twice the
+    /// surface-Dice tolerance.
+    pub fn far_mm(&self) -> f64 {
+        far_mm(self.distances.tolerance_mm)
+    }
+}
+
 /// The reference surfaces of a segmentation, by structure name.
 pub struct Reference {
     pub surfaces: BTreeMap<String, TriMesh>,
@@ -71,8 +79,6 @@ pub struct StructureScore {
     pub distances: SurfaceDistances,
     /// The deviation map summed per atlas region, by region name.
     pub by_region: BTreeMap<String, LabelDeviation>,
-    /// The distance beyond which `by_region` counts an area as far \[mm\].
-    pub far_mm: f64,
     /// The registered surface that was scored (a structure's own, or the chain's outer
     /// surface for a fused reference).
     #[serde(skip)]
@@ -153,7 +159,6 @@ pub fn score<const N: usize>(
                     Ok(StructureScore {
                         distances: c.distances,
                         by_region,
-                        far_mm: far_mm(tolerance_mm),
                         surface: test,
                         deviation: c.deviation.quality,
                         colours: c.deviation.colours,
@@ -202,7 +207,7 @@ mod tests {
         };
         let [scored] = score(&atlas, [nodes], &reference, 0.15).unwrap();
         let chain = &scored[CHAIN];
-        assert_eq!(chain.far_mm, 0.3);
+        assert_eq!(chain.far_mm(), 0.3);
         let far = |region: Region| {
             chain.by_region.get(region.name()).map_or(0.0, |d| {
                 d.area_mm2 * (d.far_outside_share + d.far_inside_share)

@@ -212,7 +212,7 @@ fn scores_of(
                 rigid: before,
                 masd_improvement: improvement,
                 by_region: r.by_region.clone(),
-                far_mm: Some(r.far_mm),
+                far_mm: Some(r.far_mm()),
             };
             (name.clone(), metrics)
         })
