@@ -1,5 +1,6 @@
-//! The mechanics of the embedded atlas: its transfer function passes the literature gates but
-//! the 250-500 Hz slope (docs/mechanics.md, "Dashpot along the footplate normal"); a
+//! The mechanics of the embedded atlas: its ossicles weigh what weighed ones do; its transfer
+//! function passes the literature gates, the 250-500 Hz slope on the band's edge
+//! (docs/mechanics.md, "The malleus's mass"); a
 //! rigidly moved copy (a "package" differing by a rigid motion only) has identical
 //! mechanics; the follower-pressure static solve at low pressure agrees with the harmonic
 //! solver at zero frequency (two independent code paths: Newton + Cholesky, complex LU); the
@@ -10,7 +11,7 @@
 //! gates.
 
 use nalgebra::{Point3, Rotation3, Vector3};
-use otoatlas::atlas::default_atlas;
+use otoatlas::atlas::{Part, default_atlas};
 use otoatlas::fem::FactorPrecision;
 use otoatlas::fem::HarmonicSolver;
 use otoatlas::mechanics::simulate::{SimulationOptions, simulate};
@@ -20,12 +21,13 @@ use otoatlas::mechanics::{
     literature_verdict, relative_verdict, static_pressure_curve, transfer_function,
 };
 
-/// Every transfer-function gate passes but the 250-500 Hz slope: the incudostapedial joint's
-/// modulus was chosen so that the slope met its gate (by 0.04 dB/octave) while the cochlear
-/// dashpot damped all three directions; along the footplate normal only, the slope is
-/// 9.87 dB/octave. The atlas is not re-fitted here (docs/mechanics.md).
+/// Every transfer-function gate passes, the 250-500 Hz slope on the band's edge: the
+/// incudostapedial joint's modulus was chosen so that the slope met its gate while the cochlear
+/// dashpot damped all three directions (9.87 dB/octave along the footplate normal only), and
+/// with the malleus weighing what mallei weigh it is 9.00 (docs/mechanics.md, "The malleus's
+/// mass"). Not evidence: the test pins where the atlas stands on that gate.
 #[test]
-fn the_atlas_transfer_function_passes_the_literature_gates_but_the_slope() {
+fn the_atlas_transfer_function_passes_the_literature_gates_the_slope_at_the_edge() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
     let tf =
@@ -42,13 +44,41 @@ fn the_atlas_transfer_function_passes_the_literature_gates_but_the_slope() {
         .filter(|g| !g.name.starts_with("UDSP"))
         .map(|g| (g.name.as_str(), g.value))
         .collect();
-    assert_eq!(tf_failures.len(), 1, "{tf_failures:?}");
-    let (name, slope) = tf_failures[0];
-    assert!(name.starts_with("slope 250-500 Hz"), "{name}");
-    assert!((9.0..10.5).contains(&slope), "{slope}");
+    assert!(tf_failures.is_empty(), "{tf_failures:?}");
+    let slope = verdict
+        .gates
+        .iter()
+        .find(|g| g.name.starts_with("slope 250-500 Hz"))
+        .map(|g| g.value);
+    assert!(slope.is_some_and(|s| (8.9..=9.0).contains(&s)), "{slope:?}");
     // stiffness-controlled at 250 Hz: velocity leads the pressure
     let phase = tf.at(250.0).unwrap().phase_deg;
     assert!((45.0..=100.0).contains(&phase), "{phase}");
+}
+
+/// The default atlas's malleus and incus weigh what weighed ossicles do: Todd & Creighton 2013
+/// (Ann Otol Rhinol Laryngol 122:60, 41 adult crania), mallei 21.2-30.7 mg, incudes
+/// 24.4-37.4 mg. The malleus's density was set for this (26.0 mg, the range's middle); with
+/// the source study's region densities it weighed 38.3 mg. The incus keeps those densities.
+#[test]
+fn the_atlas_ossicles_weigh_what_weighed_ossicles_do() {
+    let atlas = default_atlas().unwrap();
+    let mass_mg = |part: Part| -> f64 {
+        atlas
+            .regions
+            .iter()
+            .filter(|r| r.part == part)
+            .map(|r| {
+                let rho = atlas.materials[&r.material].density_kg_m3;
+                // mm³ × kg/m³ = 1e-9 kg = 1e-3 mg
+                atlas.mesh.tets.region_volume(r.label) * rho * 1e-3
+            })
+            .sum()
+    };
+    let (malleus, incus) = (mass_mg(Part::Malleus), mass_mg(Part::Incus));
+    println!("malleus {malleus:.2} mg, incus {incus:.2} mg");
+    assert!((21.2..=30.7).contains(&malleus), "malleus {malleus} mg");
+    assert!((24.4..=37.4).contains(&incus), "incus {incus} mg");
 }
 
 #[test]

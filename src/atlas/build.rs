@@ -12,8 +12,8 @@ use super::attachment::{self, ATTACH_TOLERANCE_MM, Attachment};
 use super::joint_layer::{JointLayer, joint_layers};
 use super::materials::{
     ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
-    DAMPING_SOURCE, ISJ_DENSITY_KG_M3, ISJ_SOURCE, ISJ_YOUNG_PA, POISSON, RAYLEIGH, Structure,
-    TABLE1, membrane_thickness_mm,
+    DAMPING_SOURCE, ISJ_DENSITY_KG_M3, ISJ_SOURCE, ISJ_YOUNG_PA, MALLEUS_DENSITY_KG_M3,
+    MALLEUS_DENSITY_SOURCE, POISSON, RAYLEIGH, Structure, TABLE1, membrane_thickness_mm,
 };
 use super::membrane::{MembraneMesh, triangulate_eardrum};
 use super::model::{
@@ -158,8 +158,8 @@ fn regions() -> Vec<RegionInfo> {
         .collect()
 }
 
-/// One material per Table 1 row, named after its region.
-/// The materials of Table 1 (the incudostapedial joint's from [W16], `materials`), each joint's
+/// One material per Table 1 row, named after its region: Table 1's values (the incudostapedial
+/// joint's from [W16] and the malleus's density from its weighed mass, `materials`), each joint's
 /// modulus scaled to its layer's thickness in the mesh (`JointLayer::stiffness_scale`).
 fn materials(layers: &[JointLayer]) -> BTreeMap<String, MaterialInfo> {
     TABLE1
@@ -169,6 +169,9 @@ fn materials(layers: &[JointLayer]) -> BTreeMap<String, MaterialInfo> {
                 Structure::Volume(Region::IncudostapedialJoint) => {
                     (ISJ_DENSITY_KG_M3, ISJ_YOUNG_PA, ISJ_SOURCE)
                 }
+                Structure::Volume(
+                    Region::MalleusHead | Region::MalleusNeck | Region::MalleusHandle,
+                ) => (MALLEUS_DENSITY_KG_M3, *e, MALLEUS_DENSITY_SOURCE),
                 _ => (*rho, *e, "Kazmitcheff et al. 2013, Table 1"),
             };
             let layer = layers

@@ -22,6 +22,8 @@
 //! - \[Kw15\] Kwacz, Rymuza, Michalowski, Wysocki 2015, JARO 16:433–446: the annular ligament
 //!   is linear up to ~100 nm deflection with a stiffness of about 120 N/m (AFM, temporal
 //!   bones).
+//! - \[TC13\] Todd & Creighton 2013, Ann Otol Rhinol Laryngol 122:60 ("Malleus and incus:
+//!   correlates of size", 41 adult crania): mallei weighed 21.2–30.7 mg, incudes 24.4–37.4 mg.
 //! - \[A01\] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance
 //!   ≈ 2e10 Pa·s/m³; with a footplate area of 3.2 mm² the dashpot is Z_c·A² ≈ 0.2 N·s/m.
 
@@ -122,6 +124,19 @@ pub const ISJ_DENSITY_KG_M3: f64 = 1.0e3;
 pub const ISJ_YOUNG_PA: f64 = 6.0e6;
 pub const ISJ_SOURCE: &str = "Wang, Gan et al. 2016, Biomech Model Mechanobiol 15:1263, Table 2 \
      (Kazmitcheff et al. 2013 Table 1 gives 6e5 Pa; docs/mechanics.md, Joints)";
+
+/// The malleus's density (kg/m³), one value for its head, neck and handle, used instead of
+/// Table 1's 2.55e3 / 4.53e3 / 3.70e3. Those were set for the source study's own regions; on this
+/// atlas's regions they weigh the malleus 38.3 mg, above all of the 21.2–30.7 mg that \[TC13\]
+/// weighed (and 4.53e3 is no bone's density). This value weighs the default atlas's malleus
+/// (9.68 mm³) 26.0 mg, the middle of that range: it is fitted to a measured mass, not to any
+/// mechanical gate (docs/mechanics.md, "The malleus's mass"). The incus (32.4 mg) and the stapes
+/// keep Table 1's densities.
+pub const MALLEUS_DENSITY_KG_M3: f64 = 2.69e3;
+pub const MALLEUS_DENSITY_SOURCE: &str = "density: 26.0 mg over the default atlas's 9.68 mm3 \
+     of malleus, the middle of the 21.2-30.7 mg weighed by Todd & Creighton 2013, Ann Otol \
+     Rhinol Laryngol 122:60 (Kazmitcheff et al. 2013 Table 1's region densities weigh this \
+     malleus 38.3 mg; docs/mechanics.md); E: Kazmitcheff et al. 2013, Table 1";
 
 /// The material of a structure, in mm-g-s units.
 pub fn material(structure: Structure) -> Material {
