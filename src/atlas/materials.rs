@@ -29,17 +29,6 @@
 
 use super::region::{MembraneRegion, Region};
 
-/// One row of the material table.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Material {
-    /// Density (g/mm³).
-    pub density_g_per_mm3: f64,
-    /// Young's modulus (Pa = µN/mm²).
-    pub young_pa: f64,
-    /// Poisson's ratio (dimensionless).
-    pub poisson: f64,
-}
-
 /// A structure of Table 1: a volumetric region or an eardrum membrane region.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Structure {
@@ -138,22 +127,6 @@ pub const MALLEUS_DENSITY_SOURCE: &str = "density: 26.0 mg over the default atla
      Rhinol Laryngol 122:60 (Kazmitcheff et al. 2013 Table 1's region densities weigh this \
      malleus 38.3 mg; docs/mechanics.md); E: Kazmitcheff et al. 2013, Table 1";
 
-/// The material of a structure, in mm-g-s units.
-pub fn material(structure: Structure) -> Material {
-    // TABLE1 lists every structure exactly once (checked by a unit test), so the search
-    // cannot fail; the fallback keeps this function total without a panic path.
-    let (_, rho, e) = TABLE1
-        .iter()
-        .find(|(s, _, _)| *s == structure)
-        .copied()
-        .unwrap_or((structure, f64::NAN, f64::NAN));
-    Material {
-        density_g_per_mm3: rho * KG_PER_M3_TO_G_PER_MM3,
-        young_pa: e,
-        poisson: POISSON,
-    }
-}
-
 /// Eardrum thickness (mm), from the literature: pars tensa 0.074 mm \[Ki60\], pars flaccida
 /// 0.1 mm \[Li70\] (the measured pars tensa range is ~0.04-0.12 mm, Kuypers et al. 2006, Hear
 /// Res 213:120 \[M\]). The eardrum is a thin shell of this thickness: in-plane stiffness E·h
@@ -243,12 +216,12 @@ mod tests {
 
     #[test]
     fn units_are_converted_once_to_mm_g_s() {
-        let neck = material(Structure::Volume(Region::MalleusNeck));
-        assert!((neck.density_g_per_mm3 - 4.53e-3).abs() < 1e-15);
-        assert_eq!(neck.young_pa, 1.41e10);
-        let tensa = material(Structure::Membrane(MembraneRegion::ParsTensa));
-        assert!((tensa.density_g_per_mm3 - 1.2e-3).abs() < 1e-15);
-        assert_eq!(tensa.young_pa, 3.34e7);
+        // pars tensa: 1.2e3 kg/m³ = 1.2e-3 g/mm³; the modulus stays in Pa (µN/mm²)
+        let row = |structure: Structure| TABLE1.iter().find(|r| r.0 == structure).copied();
+        let tensa = row(Structure::Membrane(MembraneRegion::ParsTensa));
+        assert!(tensa.is_some_and(|(_, rho, e)| {
+            (rho * KG_PER_M3_TO_G_PER_MM3 - 1.2e-3).abs() < 1e-15 && e == 3.34e7
+        }));
         // 0.2 N·s/m = 200 g/s for a 3.2 mm² footplate at 2e10 Pa·s/m³ (within 3 %).
         let c = cochlear_damping_for(2.0e10, 3.2);
         assert!((c - 204.8).abs() < 1e-9, "{c}");
