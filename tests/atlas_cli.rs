@@ -93,6 +93,9 @@ fn info_reports_the_embedded_default_atlas_from_an_empty_folder() {
     ] {
         let v = part_size(&info, part);
         assert!((lo..=hi).contains(&v), "{part} {v} mm³");
+        // the ossicle's own line sums its regions (its mass: the export test, from the cells)
+        let ossicle = info["ossicles"][part]["volume_mm3"].as_f64().unwrap();
+        assert!((ossicle - v).abs() <= 1e-9 * v, "{part}: {ossicle} vs {v}");
     }
     // what the library reads is what the binary reports
     let atlas = default_atlas().unwrap();
@@ -144,10 +147,21 @@ fn expected_export(atlas: &Atlas, info: &Value) -> Value {
             (p.name().to_string(), json!(v))
         })
         .collect();
+    let bone_masses: serde_json::Map<String, Value> = Part::BONES
+        .iter()
+        .map(|p| {
+            let name = p.name();
+            (
+                name.to_string(),
+                json!([info["ossicles"][name]["mass_mg"], atlas.labels_of(*p)]),
+            )
+        })
+        .collect();
     json!({
         "tetrahedra": atlas.mesh.tets.tets.len(),
         "triangles": atlas.mesh.triangles.len(),
         "bones": bones,
+        "bone_masses": bone_masses,
         "eardrum_area": part_size(info, "eardrum"),
         "regions": regions,
         "landmarks": info["landmarks"],

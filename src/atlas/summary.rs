@@ -1,5 +1,6 @@
-//! What `atlas info` reports: per region its element count, volume or area and mesh quality,
-//! with the materials, boundary sets, load surfaces and landmarks of the atlas.
+//! What `atlas info` reports: per region its element count, volume or area, mass and mesh
+//! quality, each ossicle's volume and mass, with the materials, boundary sets, load surfaces
+//! and landmarks of the atlas.
 
 use serde::Serialize;
 
@@ -17,6 +18,9 @@ pub struct RegionSummary {
     /// Tetrahedra: volume \[mm³\]; membranes: area \[mm²\].
     pub size: f64,
     pub unit: &'static str,
+    /// Volume (or area × thickness) × density \[mg\]; NaN (JSON null) without a material or,
+    /// for a membrane, a thickness.
+    pub mass_mg: f64,
     /// Tetrahedra only: dihedral angles \[deg\] and radius-edge ratios.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<QualitySummary>,
@@ -30,6 +34,13 @@ pub struct QualitySummary {
     pub max_radius_edge: f64,
 }
 
+/// One ossicle's figures: the sums over its regions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct OssicleSummary {
+    pub volume_mm3: f64,
+    pub mass_mg: f64,
+}
+
 /// The whole report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AtlasSummary {
@@ -39,6 +50,8 @@ pub struct AtlasSummary {
     pub tetrahedra: usize,
     pub membrane_triangles: usize,
     pub regions: Vec<RegionSummary>,
+    /// Malleus, incus and stapes, by name.
+    pub ossicles: std::collections::BTreeMap<&'static str, OssicleSummary>,
     pub materials: std::collections::BTreeMap<String, MaterialInfo>,
     pub node_sets: std::collections::BTreeMap<String, usize>,
     pub surfaces: std::collections::BTreeMap<String, usize>,
@@ -50,7 +63,14 @@ pub struct AtlasSummary {
 /// Summarises `atlas` at its rest shape.
 pub fn summarise(atlas: &Atlas) -> AtlasSummary {
     let m = &atlas.mesh;
-    let regions = atlas
+    // mm³ × kg/m³ = 1e-9 kg = 1e-3 mg
+    let mass_mg = |material: &str, volume_mm3: f64| {
+        atlas
+            .materials
+            .get(material)
+            .map_or(f64::NAN, |mi| volume_mm3 * mi.density_kg_m3 * 1e-3)
+    };
+    let regions: Vec<RegionSummary> = atlas
         .regions
         .iter()
         .map(|r| {
@@ -80,18 +100,21 @@ pub fn summarise(atlas: &Atlas) -> AtlasSummary {
                     elements: tris.len(),
                     size: area,
                     unit: "mm^2",
+                    mass_mg: mass_mg(&r.material, area * r.thickness_mm.unwrap_or(f64::NAN)),
                     quality: None,
                 };
             }
             let q = quality_stats(&m.tets, |t| m.tets.regions[t] == r.label);
+            let volume = m.tets.region_volume(r.label);
             RegionSummary {
                 label: r.label,
                 name: r.name.clone(),
                 part: r.part,
                 material: r.material.clone(),
                 elements: tets.len(),
-                size: m.tets.region_volume(r.label),
+                size: volume,
                 unit: "mm^3",
+                mass_mg: mass_mg(&r.material, volume),
                 quality: Some(QualitySummary {
                     min_dihedral_deg: q.min_dihedral_deg,
                     median_min_dihedral_deg: q.median_min_dihedral_deg,
@@ -101,6 +124,17 @@ pub fn summarise(atlas: &Atlas) -> AtlasSummary {
             }
         })
         .collect();
+    let ossicles = Part::BONES
+        .iter()
+        .map(|&part| {
+            let of_part = regions.iter().filter(|r| r.part == part);
+            let summary = OssicleSummary {
+                volume_mm3: of_part.clone().map(|r| r.size).sum(),
+                mass_mg: of_part.map(|r| r.mass_mg).sum(),
+            };
+            (part.name(), summary)
+        })
+        .collect();
     AtlasSummary {
         name: atlas.name.clone(),
         side: atlas.side,
@@ -108,6 +142,7 @@ pub fn summarise(atlas: &Atlas) -> AtlasSummary {
         tetrahedra: m.tets.tets.len(),
         membrane_triangles: m.triangles.len(),
         regions,
+        ossicles,
         materials: atlas.materials.clone(),
         node_sets: atlas
             .node_sets

@@ -14,7 +14,7 @@ use crate::atlas::import::{ImportRequest, import_atlas};
 use crate::atlas::summary::summarise;
 use crate::atlas::surfaces::{SurfaceBuild, build_from_surfaces};
 use crate::atlas::volume::{DEFAULT_EDGE_MM, FINE_EDGE_MM};
-use crate::atlas::{Anatomy, Atlas, build_atlas, load_atlas, write_atlas};
+use crate::atlas::{Anatomy, Atlas, Part, build_atlas, load_atlas, write_atlas};
 use crate::ear::Side;
 use crate::progress::Reporter;
 
@@ -210,8 +210,17 @@ fn info(args: &SourceArgs) -> Result<Report, Error> {
     );
     let _ = writeln!(
         text,
-        "\n{:<28} {:>5} {:>8} {:>10}  {:>7} {:>7} {:>6}  {:>10} {:>8}",
-        "region", "label", "elements", "size", "min°", "med°", "r/e", "E [Pa]", "ρ kg/m³"
+        "\n{:<28} {:>5} {:>8} {:>10}  {:>7} {:>7} {:>6}  {:>10} {:>8} {:>8}",
+        "region",
+        "label",
+        "elements",
+        "size",
+        "min°",
+        "med°",
+        "r/e",
+        "E [Pa]",
+        "ρ kg/m³",
+        "mass mg"
     );
     for r in &s.regions {
         let m = s.materials.get(&r.material);
@@ -226,7 +235,7 @@ fn info(args: &SourceArgs) -> Result<Report, Error> {
             });
         let _ = writeln!(
             text,
-            "{:<28} {:>5} {:>8} {:>6.3} {:<3}  {:>7} {:>7} {:>6}  {:>10.3e} {:>8.0}",
+            "{:<28} {:>5} {:>8} {:>6.3} {:<3}  {:>7} {:>7} {:>6}  {:>10.3e} {:>8.0} {:>8.3}",
             r.name,
             r.label,
             r.elements,
@@ -237,8 +246,22 @@ fn info(args: &SourceArgs) -> Result<Report, Error> {
             re,
             m.map_or(f64::NAN, |m| m.youngs_modulus_pa),
             m.map_or(f64::NAN, |m| m.density_kg_m3),
+            r.mass_mg,
         );
     }
+    let ossicles: Vec<String> = Part::BONES
+        .iter()
+        .filter_map(|p| {
+            let o = s.ossicles.get(p.name())?;
+            Some(format!(
+                "{} {:.2} mm^3, {:.1} mg",
+                p.name(),
+                o.volume_mm3,
+                o.mass_mg
+            ))
+        })
+        .collect();
+    let _ = writeln!(text, "ossicles: {}", ossicles.join("; "));
     let _ = writeln!(text, "\nboundary node sets:");
     for (k, v) in &s.node_sets {
         let _ = writeln!(text, "  {k:<40} {v} nodes");

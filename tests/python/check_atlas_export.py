@@ -5,6 +5,7 @@ usage: check_atlas_export.py OUT_DIR EXPECTED.json
 EXPECTED.json (from `otoatlas atlas info --json`, arranged by the Rust test):
   {"tetrahedra": n, "triangles": n,
    "bones": {"malleus": volume_mm3, "incus": ..., "stapes": ...},
+   "bone_masses": {"malleus": [mass_mg, [region labels]], "incus": ..., "stapes": ...},
    "eardrum_area": mm2,
    "regions": {"<label>": [youngs_modulus_pa, density_kg_m3, poisson_ratio, thickness_mm]},
    "landmarks": {"umbo": [x, y, z], "incudomalleolar": [...], "incudostapedial": [...]}}
@@ -13,7 +14,8 @@ Checks: each bone PLY is watertight, consistently wound, outward (positive volum
 the atlas's bone volume) and one piece; the eardrum PLY is an open disc (one piece, Euler
 characteristic 1, one boundary loop) with the atlas's area; volume.vtu has exactly the atlas's
 tetra and triangle cells, and its region, Young's modulus, density, Poisson's ratio and
-thickness per cell match the atlas's regions; landmarks.json and landmarks.fcsv (LPS) hold the
+thickness per cell match the atlas's regions, and each bone's mass (its tetrahedra's volumes
+times their density, summed over its regions' cells) is the one `atlas info` reports; landmarks.json and landmarks.fcsv (LPS) hold the
 atlas's landmarks. Prints "ok" or "FAIL: ..." and exits 1 on failure.
 """
 import json
@@ -72,6 +74,23 @@ def main():
                 got = np.asarray(data[name][block])[regions == label]
                 if not np.allclose(got, value, rtol=1e-12, atol=0):
                     fail(f"volume.vtu: {name} of region {label}: {np.unique(got)} != {value}")
+
+    # each bone's mass from the cells alone: |det| / 6 per tetrahedron, times its density
+    tetra = [i for i, c in enumerate(vol.cells) if c.type == "tetra"][0]
+    corners = vol.points[vol.cells[tetra].data]
+    volumes = np.abs(np.einsum(
+        "ij,ij->i",
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]),
+        corners[:, 3] - corners[:, 0],
+    )) / 6.0
+    labels = np.asarray(data["region"][tetra]).astype(int).ravel()
+    density = np.asarray(data["density_kg_m3"][tetra]).ravel()
+    for bone, (mass_mg, bone_labels) in expected["bone_masses"].items():
+        inside = np.isin(labels, bone_labels)
+        # mm^3 x kg/m^3 = 1e-9 kg = 1e-3 mg
+        got = float(np.sum(volumes[inside] * density[inside])) * 1e-3
+        if not abs(got - mass_mg) <= 1e-9 * mass_mg:
+            fail(f"volume.vtu: {bone} weighs {got} mg from its cells, atlas info {mass_mg}")
 
     marks = json.loads((out / "landmarks.json").read_text())
     if marks.get("coordinate_system") != "LPS":
