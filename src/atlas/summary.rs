@@ -4,6 +4,7 @@
 
 use serde::Serialize;
 
+use super::materials::KG_PER_M3_TO_G_PER_MM3;
 use super::model::{Atlas, MaterialInfo, Part};
 use crate::mesh::quality::quality_stats;
 
@@ -63,12 +64,11 @@ pub struct AtlasSummary {
 /// Summarises `atlas` at its rest shape.
 pub fn summarise(atlas: &Atlas) -> AtlasSummary {
     let m = &atlas.mesh;
-    // mm³ × kg/m³ = 1e-9 kg = 1e-3 mg
+    // mm³ × g/mm³ = g; 1 g = 1e3 mg
     let mass_mg = |material: &str, volume_mm3: f64| {
-        atlas
-            .materials
-            .get(material)
-            .map_or(f64::NAN, |mi| volume_mm3 * mi.density_kg_m3 * 1e-3)
+        atlas.materials.get(material).map_or(f64::NAN, |mi| {
+            volume_mm3 * mi.density_kg_m3 * KG_PER_M3_TO_G_PER_MM3 * 1e3
+        })
     };
     let regions: Vec<RegionSummary> = atlas
         .regions
