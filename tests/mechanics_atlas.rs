@@ -21,13 +21,14 @@ use otoatlas::mechanics::{
     literature_verdict, relative_verdict, static_pressure_curve, transfer_function,
 };
 
-/// Every transfer-function gate passes, the 250-500 Hz slope on the band's edge: the
-/// incudostapedial joint's modulus was chosen so that the slope met its gate while the cochlear
-/// dashpot damped all three directions (9.87 dB/octave along the footplate normal only), and
-/// with the malleus weighing what mallei weigh it is 9.00 (docs/mechanics.md, "The malleus's
-/// mass"). Not evidence: the test pins where the atlas stands on that gate.
+/// Every transfer-function gate passes but the 250-500 Hz slope, which the atlas fails at
+/// 9.13 dB/octave (band 3-9), as the fine atlas of the same anatomy does at 9.99: its
+/// suspension resonates near 300 Hz (docs/mechanics.md, "What the notch at 315 Hz is"). It
+/// passed at 9.00 while its bones weighed what its lattice held, 5-7 % less than the anatomy
+/// ("Masses that do not depend on the mesh"). Not evidence either way: the test pins where the
+/// atlas stands on that gate.
 #[test]
-fn the_atlas_transfer_function_passes_the_literature_gates_the_slope_at_the_edge() {
+fn the_atlas_transfer_function_fails_only_the_slope_gate_as_its_fine_lattice_does() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
     let tf =
@@ -44,13 +45,11 @@ fn the_atlas_transfer_function_passes_the_literature_gates_the_slope_at_the_edge
         .filter(|g| !g.name.starts_with("UDSP"))
         .map(|g| (g.name.as_str(), g.value))
         .collect();
-    assert!(tf_failures.is_empty(), "{tf_failures:?}");
-    let slope = verdict
-        .gates
-        .iter()
-        .find(|g| g.name.starts_with("slope 250-500 Hz"))
-        .map(|g| g.value);
-    assert!(slope.is_some_and(|s| (8.9..=9.0).contains(&s)), "{slope:?}");
+    assert_eq!(tf_failures.len(), 1, "{tf_failures:?}");
+    assert!(
+        tf_failures[0].0.starts_with("slope 250-500 Hz") && (9.0..=9.3).contains(&tf_failures[0].1),
+        "{tf_failures:?}"
+    );
     // stiffness-controlled at 250 Hz: velocity leads the pressure
     let phase = tf.at(250.0).unwrap().phase_deg;
     assert!((45.0..=100.0).contains(&phase), "{phase}");
@@ -58,8 +57,9 @@ fn the_atlas_transfer_function_passes_the_literature_gates_the_slope_at_the_edge
 
 /// The default atlas's malleus and incus weigh what weighed ossicles do: Todd & Creighton 2013
 /// (Ann Otol Rhinol Laryngol 122:60, 41 adult crania), mallei 21.2-30.7 mg, incudes
-/// 24.4-37.4 mg. The malleus's density was set for this (26.0 mg, the range's middle); with
-/// the source study's region densities it weighed 38.3 mg. The incus keeps those densities.
+/// 24.4-37.4 mg. The malleus's density was set for this (26.0 mg, the range's middle, on the
+/// anatomy's volume, whose masses every mesh of it carries); with the source study's region
+/// densities it weighed 40.6 mg. The incus keeps those densities (34.4 mg).
 #[test]
 fn the_atlas_ossicles_weigh_what_weighed_ossicles_do() {
     let atlas = default_atlas().unwrap();

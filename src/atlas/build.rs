@@ -1,8 +1,9 @@
 //! Building the atlas from the parametric anatomy: the volumetric regions meshed into
 //! conforming tetrahedra, the eardrum triangulated and attached to the manubrium by shared
-//! nodes, the Table 1 materials, the boundary-condition sites found on the mesh, and the
-//! landmarks tied to it. The result depends only on the anatomy and the two edge lengths, and
-//! is deterministic (same inputs, byte-identical files).
+//! nodes, the Table 1 materials (each region weighing what the anatomy's does: `mass`), the
+//! boundary-condition sites found on the mesh, and the landmarks tied to it. The result
+//! depends only on the anatomy and the two edge lengths, and is deterministic (same inputs,
+//! byte-identical files).
 
 use std::collections::BTreeMap;
 
@@ -10,6 +11,7 @@ use nalgebra::Point3;
 
 use super::attachment::{self, ATTACH_TOLERANCE_MM, Attachment};
 use super::joint_layer::{JointLayer, joint_layers};
+use super::mass::{record_shape_volumes, restore_shape_masses};
 use super::materials::{
     ANNULAR_LIGAMENT_SOURCE, ANNULAR_LIGAMENT_STIFFNESS_N_PER_M, COCHLEAR_IMPEDANCE_PA_S_PER_M3,
     DAMPING_SOURCE, ISJ_DENSITY_KG_M3, ISJ_SOURCE, ISJ_YOUNG_PA, MALLEUS_DENSITY_KG_M3,
@@ -64,6 +66,10 @@ pub fn build_atlas(
     let merged = attach_membrane(&mut tets, &membrane, drum.medial_normal)?;
     let (node_sets, surfaces) = boundary_sites(anatomy, &merged)?;
     let landmarks = tie_landmarks(&merged.mesh.tets, anatomy)?;
+    let mut regions = regions();
+    record_shape_volumes(anatomy, &mut regions);
+    let mut materials = materials(&layers);
+    restore_shape_masses(&mut materials, &regions, &merged.mesh.tets);
     let mut provenance = BTreeMap::new();
     provenance.insert("builder".into(), "otoatlas atlas build".into());
     provenance.insert("anatomy_sha256".into(), anatomy_digest(anatomy));
@@ -97,8 +103,8 @@ pub fn build_atlas(
         name: name.to_string(),
         side: anatomy.side(),
         mesh: merged.mesh,
-        regions: regions(),
-        materials: materials(&layers),
+        regions,
+        materials,
         damping: Damping {
             rayleigh_alpha_per_s: RAYLEIGH.alpha_per_s,
             rayleigh_beta_s: RAYLEIGH.beta_s,
@@ -140,6 +146,7 @@ fn regions() -> Vec<RegionInfo> {
             material: r.name().into(),
             thickness_mm: None,
             bending_thickness_mm: None,
+            shape_volume_mm3: None,
         })
         .chain(
             [MembraneRegion::ParsTensa, MembraneRegion::ParsFlaccida].map(|m| {
@@ -152,6 +159,7 @@ fn regions() -> Vec<RegionInfo> {
                     material: m.name().into(),
                     thickness_mm: h,
                     bending_thickness_mm: h,
+                    shape_volume_mm3: None,
                 }
             }),
         )

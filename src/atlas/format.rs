@@ -307,6 +307,16 @@ pub fn validate(atlas: &Atlas, path: &Path) -> Result<(), AtlasError> {
                 h.to_string(),
             );
         }
+        if let Some(v) = r
+            .shape_volume_mm3
+            .filter(|v| !(v.is_finite() && *v > 0.0 && r.thickness_mm.is_none()))
+        {
+            return bad(
+                format!("regions[{k}].shape_volume_mm3"),
+                "a positive volume, on a volumetric region (one without thickness_mm)",
+                v.to_string(),
+            );
+        }
     }
     let kind_of =
         |label: u16, membrane: bool, what: &str, index: usize| -> Result<(), AtlasError> {

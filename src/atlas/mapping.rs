@@ -10,6 +10,7 @@ use nalgebra::{Point3, Vector3};
 use serde::Deserialize;
 
 use super::format::{AtlasError, default_atlas};
+use super::mass::without_mesh_correction;
 use super::model::{MaterialInfo, Part, RegionInfo, bad_bending_thickness};
 
 /// The mapping file: what each cell tag of the mesh becomes.
@@ -172,12 +173,15 @@ pub(crate) fn check_mapping(m: &Mapping, path: &Path) -> Result<(), AtlasError> 
     Ok(())
 }
 
-/// The materials a mapping (or a surface build) may name: the default atlas's, plus one
-/// whole-bone material for each ossicle without a region of that name (`malleus`, `incus`),
-/// with the bone's Young's modulus and the volume-weighted density of its default regions.
+/// The materials a mapping (or a surface build) may name: the default atlas's as the literature
+/// gives them (without the correction that gives the default mesh its anatomy's masses,
+/// `mass`), plus one whole-bone material for each ossicle without a region of that name
+/// (`malleus`, `incus`), with the bone's Young's modulus and the density that gives it the
+/// anatomy's mass.
 pub fn material_library() -> Result<BTreeMap<String, MaterialInfo>, AtlasError> {
     let default = default_atlas()?;
-    let mut lib = default.materials.clone();
+    let tets = &default.mesh.tets;
+    let mut lib = without_mesh_correction(&default.materials, &default.regions, tets);
     for part in Part::BONES {
         if lib.contains_key(part.name()) {
             continue;
@@ -188,9 +192,9 @@ pub fn material_library() -> Result<BTreeMap<String, MaterialInfo>, AtlasError> 
             let Some(m) = default.materials.get(&r.material) else {
                 continue;
             };
-            let v = default.mesh.tets.region_volume(r.label);
-            mass += m.density_kg_m3 * v;
-            volume += v;
+            let meshed = tets.region_volume(r.label);
+            mass += m.density_kg_m3 * meshed;
+            volume += r.shape_volume_mm3.unwrap_or(meshed);
             modulus = modulus.max(m.youngs_modulus_pa);
             nu = m.poisson_ratio;
         }
@@ -202,9 +206,8 @@ pub fn material_library() -> Result<BTreeMap<String, MaterialInfo>, AtlasError> 
                     youngs_modulus_pa: modulus,
                     poisson_ratio: nu,
                     source: format!(
-                        "whole {}: the densities of its regions in the default atlas, \
-                         weighted by their volumes there; E and Poisson's ratio as the default \
-                         atlas's bone",
+                        "whole {}: the default atlas's mass of it over the anatomy's volume; E \
+                         and Poisson's ratio as the default atlas's bone",
                         part.name()
                     ),
                 },
@@ -257,6 +260,7 @@ pub(crate) fn resolve_regions(
             material: key,
             thickness_mm: r.thickness_mm,
             bending_thickness_mm: r.bending_thickness_mm,
+            shape_volume_mm3: None,
         });
     }
     Ok((regions, materials))

@@ -117,15 +117,16 @@ pub const ISJ_SOURCE: &str = "Wang, Gan et al. 2016, Biomech Model Mechanobiol 1
 /// The malleus's density (kg/m³), one value for its head, neck and handle, used instead of
 /// Table 1's 2.55e3 / 4.53e3 / 3.70e3. Those were set for the source study's own regions; on this
 /// atlas's regions they weigh the malleus 38.3 mg, above all of the 21.2–30.7 mg that \[TC13\]
-/// weighed (and 4.53e3 is no bone's density). This value weighs the default atlas's malleus
-/// (9.68 mm³) 26.0 mg, the middle of that range: it is fitted to a measured mass, not to any
-/// mechanical gate (docs/mechanics.md, "The malleus's mass"). The incus (32.4 mg) and the stapes
-/// keep Table 1's densities.
-pub const MALLEUS_DENSITY_KG_M3: f64 = 2.69e3;
-pub const MALLEUS_DENSITY_SOURCE: &str = "density: 26.0 mg over the default atlas's 9.68 mm3 \
-     of malleus, the middle of the 21.2-30.7 mg weighed by Todd & Creighton 2013, Ann Otol \
+/// weighed (and 4.53e3 is no bone's density). This value weighs the default anatomy's malleus
+/// (10.32 mm³; every mesh of it carries the anatomy's masses, `atlas::mass`) 26.0 mg, the
+/// middle of that range: it is fitted to a measured mass, not to any mechanical gate
+/// (docs/mechanics.md, "The malleus's mass"). The incus (34.3 mg) and the stapes keep Table 1's
+/// densities.
+pub const MALLEUS_DENSITY_KG_M3: f64 = 2.52e3;
+pub const MALLEUS_DENSITY_SOURCE: &str = "density: 26.0 mg over the default anatomy's 10.32 \
+     mm3 of malleus, the middle of the 21.2-30.7 mg weighed by Todd & Creighton 2013, Ann Otol \
      Rhinol Laryngol 122:60 (Kazmitcheff et al. 2013 Table 1's region densities weigh this \
-     malleus 38.3 mg; docs/mechanics.md); E: Kazmitcheff et al. 2013, Table 1";
+     malleus 40.6 mg; docs/mechanics.md); E: Kazmitcheff et al. 2013, Table 1";
 
 /// Eardrum thickness (mm), from the literature: pars tensa 0.074 mm \[Ki60\], pars flaccida
 /// 0.1 mm \[Li70\] (the measured pars tensa range is ~0.04-0.12 mm, Kuypers et al. 2006, Hear

@@ -15,6 +15,7 @@ pub mod format;
 pub mod import;
 pub mod joint_layer;
 pub mod mapping;
+pub mod mass;
 pub mod materials;
 pub mod membrane;
 pub mod model;

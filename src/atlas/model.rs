@@ -66,6 +66,12 @@ pub struct RegionInfo {
     /// E·h_b³/(12(1 − ν²)) on top of the in-plane stiffness. Absent: a bending-free membrane.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bending_thickness_mm: Option<f64>,
+    /// Volume \[mm³\] of a volumetric region in the shape its mesh was built from (the
+    /// anatomy, or the surfaces); its material's density is scaled by this over the mesh's
+    /// volume so that the region weighs what the shape does (`atlas::mass`). Absent: the
+    /// density is the material's own (an imported mesh). A package keeps its atlas's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape_volume_mm3: Option<f64>,
 }
 
 /// The flexural thickness `bending` of a region with membrane thickness `thickness`, when it

@@ -38,7 +38,11 @@ pub struct QualitySummary {
 /// One ossicle's figures: the sums over its regions.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct OssicleSummary {
+    /// Volume of its tetrahedra.
     pub volume_mm3: f64,
+    /// Its volume in the shape the mesh was built from, when every region of it records one
+    /// (`RegionInfo::shape_volume_mm3`): the volume its mass belongs to.
+    pub shape_volume_mm3: Option<f64>,
     pub mass_mg: f64,
 }
 
@@ -130,6 +134,12 @@ pub fn summarise(atlas: &Atlas) -> AtlasSummary {
             let of_part = regions.iter().filter(|r| r.part == part);
             let summary = OssicleSummary {
                 volume_mm3: of_part.clone().map(|r| r.size).sum(),
+                shape_volume_mm3: atlas
+                    .regions
+                    .iter()
+                    .filter(|r| r.part == part)
+                    .map(|r| r.shape_volume_mm3)
+                    .sum(),
                 mass_mg: of_part.map(|r| r.mass_mg).sum(),
             };
             (part.name(), summary)

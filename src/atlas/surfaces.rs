@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use super::format::{AtlasError, default_atlas, validate};
 use super::import::{landmarks_and_side, tie_landmarks};
 use super::mapping::material_library;
+use super::mass::{record_shape_volumes, restore_shape_masses};
 use super::model::{Atlas, Part, RegionInfo};
 use crate::ear::{CHAIN_SPAN_MM, Side, is_chain_span, span_mm, structure_names};
 use crate::io_util::sha256_hex;
@@ -123,8 +124,11 @@ pub fn build_from_surfaces(req: &SurfaceBuild<'_>) -> Result<Atlas, AtlasError> 
             material: bone.name().to_string(),
             thickness_mm: None,
             bending_thickness_mm: None,
+            shape_volume_mm3: None,
         });
     }
+    record_shape_volumes(&domain, &mut regions);
+    restore_shape_masses(&mut materials, &regions, &tets);
     let mut provenance = BTreeMap::new();
     provenance.insert("builder".into(), "otoatlas atlas build --surfaces".into());
     provenance.insert("tet_edge_mm".into(), req.edge_mm.to_string());

@@ -253,8 +253,11 @@ fn info(args: &SourceArgs) -> Result<Report, Error> {
         .iter()
         .filter_map(|p| {
             let o = s.ossicles.get(p.name())?;
+            let shape = o
+                .shape_volume_mm3
+                .map_or(String::new(), |v| format!(" ({v:.2} in its shape)"));
             Some(format!(
-                "{} {:.2} mm^3, {:.1} mg",
+                "{} {:.2} mm^3{shape}, {:.1} mg",
                 p.name(),
                 o.volume_mm3,
                 o.mass_mg

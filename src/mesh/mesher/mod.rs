@@ -315,4 +315,4 @@ pub fn mesh_domain<D: LabelledDomain + ?Sized>(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -288,7 +288,7 @@ fn bad_parameters_are_errors() {
 }
 
 /// A core ball (region 1, radius 1) inside a shell (region 2, radii 1..2).
-struct CoreShell;
+pub(crate) struct CoreShell;
 
 impl LabelledDomain for CoreShell {
     fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
