@@ -120,7 +120,7 @@ pub const ISJ_SOURCE: &str = "Wang, Gan et al. 2016, Biomech Model Mechanobiol 1
 /// weighed (and 4.53e3 is no bone's density). This value weighs the default anatomy's malleus
 /// (10.32 mm³; every mesh of it carries the anatomy's masses, `atlas::mass`) 26.0 mg, the
 /// middle of that range: it is fitted to a measured mass, not to any mechanical gate
-/// (docs/mechanics.md, "The malleus's mass"). The incus (34.3 mg) and the stapes keep Table 1's
+/// (docs/mechanics.md, "The malleus's mass"). The incus (34.4 mg) and the stapes keep Table 1's
 /// densities.
 pub const MALLEUS_DENSITY_KG_M3: f64 = 2.52e3;
 pub const MALLEUS_DENSITY_SOURCE: &str = "density: 26.0 mg over the default anatomy's 10.32 \

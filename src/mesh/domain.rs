@@ -62,7 +62,9 @@ pub fn region_volumes<D: LabelledDomain + ?Sized>(domain: &D, spacing_mm: f64) -
                             .fold(f64::INFINITY, f64::min)
                     };
                     if clearance > CLEARANCE_MARGIN * half_diagonal {
-                        counts[usize::from(label)] += (SUBDIVISION as u64).pow(3);
+                        if let Some(n) = counts.get_mut(usize::from(label)) {
+                            *n += (SUBDIVISION as u64).pow(3);
+                        }
                         continue;
                     }
                     for c in 0..SUBDIVISION {
