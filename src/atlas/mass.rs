@@ -97,3 +97,84 @@ pub fn without_mesh_correction(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::model::Part;
+    use nalgebra::Point3;
+
+    /// Three unit-corner tetrahedra (1/6 mm³ each), labels 1, 2 (both of material `bone`) and 3
+    /// (`soft`).
+    fn mesh() -> TetMesh {
+        let corner = |x: f64| {
+            [
+                Point3::new(x, 0.0, 0.0),
+                Point3::new(x + 1.0, 0.0, 0.0),
+                Point3::new(x, 1.0, 0.0),
+                Point3::new(x, 0.0, 1.0),
+            ]
+        };
+        TetMesh {
+            nodes: [corner(0.0), corner(2.0), corner(4.0)].concat(),
+            tets: vec![[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]],
+            regions: vec![1, 2, 3],
+        }
+    }
+
+    fn region(label: u16, material: &str, shape: Option<f64>) -> RegionInfo {
+        RegionInfo {
+            label,
+            name: format!("r{label}"),
+            part: Part::Connective,
+            material: material.into(),
+            thickness_mm: None,
+            bending_thickness_mm: None,
+            shape_volume_mm3: shape,
+        }
+    }
+
+    fn material(density: f64) -> MaterialInfo {
+        MaterialInfo {
+            density_kg_m3: density,
+            youngs_modulus_pa: 1e6,
+            poisson_ratio: 0.3,
+            source: "a book".into(),
+        }
+    }
+
+    #[test]
+    fn regions_of_one_material_share_its_correction_and_it_undoes_exactly() {
+        let mesh = mesh();
+        let sixth = 1.0 / 6.0;
+        let regions = [
+            region(1, "bone", Some(0.2)),
+            region(2, "bone", Some(0.25)),
+            region(3, "soft", None),
+        ];
+        let original: BTreeMap<String, MaterialInfo> = [
+            ("bone".into(), material(2000.0)),
+            ("soft".into(), material(1000.0)),
+        ]
+        .into();
+        let mut materials = original.clone();
+        restore_shape_masses(&mut materials, &regions, &mesh);
+        // the two bone regions weigh what their shapes do, together
+        let scale = 0.45 / (2.0 * sixth);
+        assert!((materials["bone"].density_kg_m3 - 2000.0 * scale).abs() < 1e-9);
+        assert!(
+            materials["bone"]
+                .source
+                .starts_with("a book; density x 1.350: 0.333 mm3")
+        );
+        // a region without a shape volume keeps its material as it is
+        assert_eq!(materials["soft"], original["soft"]);
+        let undone = without_mesh_correction(&materials, &regions, &mesh);
+        assert_eq!(undone["bone"].source, "a book");
+        for name in ["bone", "soft"] {
+            assert!(
+                (undone[name].density_kg_m3 / original[name].density_kg_m3 - 1.0).abs() < 1e-12
+            );
+        }
+    }
+}
