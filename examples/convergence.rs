@@ -4,8 +4,8 @@
 //! every one-third octave (criterion ≤ 1 dB; docs/mechanics.md, "Convergence"), and the RMS
 //! difference of |H_V| at the octaves:
 //! `cargo run --release --example convergence -- FINE_DIR [ATLAS_DIR]`
-//! (the fine atlas: `otoatlas atlas build --fine --out FINE_DIR`, 11 s; the comparison about
-//! 20 s and 4 GB on two cores).
+//! (the fine atlas: `otoatlas atlas build --fine --out FINE_DIR`, about 15 s; the comparison
+//! about 40 s and 4 GB on two cores).
 //! The octaves alone miss the suspension's resonance between them (near 300 Hz), where the
 //! 250-500 Hz slope gate and Chien's phase are read.
 

@@ -8,7 +8,7 @@ use clap::{Args, Subcommand};
 
 use super::Report;
 use crate::Error;
-use crate::atlas::build::DEFAULT_MEMBRANE_EDGE_MM;
+use crate::atlas::build::{DEFAULT_MEMBRANE_EDGE_MM, FINE_MEMBRANE_EDGE_MM};
 use crate::atlas::export::export_atlas;
 use crate::atlas::import::{ImportRequest, import_atlas};
 use crate::atlas::summary::summarise;
@@ -34,7 +34,7 @@ pub enum AtlasCommand {
     /// same input, same bytes).
     #[command(after_help = "Examples:
   otoatlas atlas build --out assets/atlas            # the embedded default, rebuilt
-  otoatlas atlas build --fine --out fine-atlas       # ~200,000 tetrahedra, for convergence")]
+  otoatlas atlas build --fine --out fine-atlas       # ~200,000 tetrahedra, a finer eardrum too")]
     Build(BuildArgs),
     /// Element counts, volumes, mesh quality, materials, boundary sets and landmarks.
     Info(SourceArgs),
@@ -113,12 +113,12 @@ pub struct BuildArgs {
     /// Target tetrahedron edge (mm).
     #[arg(long, value_name = "MM", default_value_t = DEFAULT_EDGE_MM, conflicts_with = "fine")]
     pub edge: f64,
-    /// The fine variant (edge 0.11 mm).
+    /// The fine variant: tetrahedra of 0.11 mm and eardrum triangles of 0.17 mm.
     #[arg(long)]
     pub fine: bool,
-    /// Target eardrum triangle edge (mm).
-    #[arg(long, value_name = "MM", default_value_t = DEFAULT_MEMBRANE_EDGE_MM)]
-    pub membrane_edge: f64,
+    /// Target eardrum triangle edge (mm) [default: 0.24, with --fine 0.17].
+    #[arg(long, value_name = "MM")]
+    pub membrane_edge: Option<f64>,
     /// The atlas's name in its manifest.
     #[arg(long, default_value = "default")]
     pub name: String,
@@ -137,8 +137,13 @@ pub fn run(args: &AtlasArgs, progress: &dyn Reporter) -> Result<Report, Error> {
 }
 
 fn build(args: &BuildArgs, progress: &dyn Reporter) -> Result<Report, Error> {
-    let edge = if args.fine { FINE_EDGE_MM } else { args.edge };
-    for (name, v) in [("--edge", edge), ("--membrane-edge", args.membrane_edge)] {
+    let (edge, membrane_edge) = if args.fine {
+        (FINE_EDGE_MM, FINE_MEMBRANE_EDGE_MM)
+    } else {
+        (args.edge, DEFAULT_MEMBRANE_EDGE_MM)
+    };
+    let membrane_edge = args.membrane_edge.unwrap_or(membrane_edge);
+    for (name, v) in [("--edge", edge), ("--membrane-edge", membrane_edge)] {
         if !(v.is_finite() && (0.02..=2.0).contains(&v)) {
             return Err(Error::Usage(format!(
                 "{name} {v}: expected an edge length from 0.02 to 2 mm"
@@ -159,7 +164,7 @@ fn build(args: &BuildArgs, progress: &dyn Reporter) -> Result<Report, Error> {
                 Some(p) => Anatomy::load(p)?,
                 None => Anatomy::default_right()?,
             };
-            build_atlas(&anatomy, &args.name, edge, args.membrane_edge)
+            build_atlas(&anatomy, &args.name, edge, membrane_edge)
                 .map_err(crate::atlas::AtlasError::from)?
         }
     };
