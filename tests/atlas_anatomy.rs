@@ -80,6 +80,25 @@ fn principal_extent(points: &[Point3<f64>]) -> f64 {
     mx - mn
 }
 
+/// `region_volumes` counts blocks far from every boundary whole, trusting the anatomy's signed
+/// distances: on the anatomy it must count what labelling every cell of the same lattice does.
+#[test]
+fn region_volumes_of_the_anatomy_count_what_its_full_lattice_does() {
+    let a = atlas();
+    let h = 0.08;
+    let by = lattice_by_label(&a, h);
+    let volumes = otoatlas::mesh::domain::region_volumes(&a, h);
+    for r in Region::ALL {
+        let full = by[usize::from(r.label())].len() as f64 * h.powi(3);
+        assert!(
+            (volumes[usize::from(r.label())] - full).abs() < 1e-9,
+            "{}: {} vs {full}",
+            r.name(),
+            volumes[usize::from(r.label())]
+        );
+    }
+}
+
 #[test]
 fn volumes_and_lengths_are_anatomical() {
     let a = atlas();
