@@ -56,8 +56,42 @@ fn assembly(what: impl Into<String>) -> BuildError {
 }
 
 /// Builds the atlas of `anatomy` with tetrahedra of about `edge_mm` and membrane triangles
-/// of about `membrane_edge_mm`.
+/// of about `membrane_edge_mm`, each region weighing what the anatomy's does (`mass`).
 pub fn build_atlas(
+    anatomy: &Anatomy,
+    name: &str,
+    edge_mm: f64,
+    membrane_edge_mm: f64,
+) -> Result<Atlas, BuildError> {
+    let mut atlas = mesh_atlas(anatomy, name, edge_mm, membrane_edge_mm)?;
+    record_shape_volumes(anatomy, &mut atlas.regions);
+    restore_shape_masses(&mut atlas.materials, &atlas.regions, &atlas.mesh.tets);
+    Ok(atlas)
+}
+
+/// `atlas`'s anatomy meshed again at other edges, with `atlas`'s own regions, materials,
+/// damping and supports (so an atlas whose `atlas.json` was edited keeps its edits): the drum
+/// convergence study's rebuilds, which would discard `build_atlas`'s measurement of the
+/// anatomy's volumes.
+pub fn remesh_atlas(
+    anatomy: &Anatomy,
+    atlas: &Atlas,
+    edge_mm: f64,
+    membrane_edge_mm: f64,
+) -> Result<Atlas, BuildError> {
+    let remeshed = mesh_atlas(anatomy, &atlas.name, edge_mm, membrane_edge_mm)?;
+    Ok(Atlas {
+        regions: atlas.regions.clone(),
+        materials: atlas.materials.clone(),
+        damping: atlas.damping.clone(),
+        supports: atlas.supports.clone(),
+        ..remeshed
+    })
+}
+
+/// The atlas of `anatomy` at the given edges, its materials as `materials` makes them (no
+/// region's mass restored to the anatomy's yet).
+fn mesh_atlas(
     anatomy: &Anatomy,
     name: &str,
     edge_mm: f64,
@@ -71,10 +105,6 @@ pub fn build_atlas(
     let merged = attach_membrane(&mut tets, &membrane, drum.medial_normal)?;
     let (node_sets, surfaces) = boundary_sites(anatomy, &merged)?;
     let landmarks = tie_landmarks(&merged.mesh.tets, anatomy)?;
-    let mut regions = regions();
-    record_shape_volumes(anatomy, &mut regions);
-    let mut materials = materials(&layers);
-    restore_shape_masses(&mut materials, &regions, &merged.mesh.tets);
     let mut provenance = BTreeMap::new();
     provenance.insert("builder".into(), "otoatlas atlas build".into());
     provenance.insert("anatomy_sha256".into(), anatomy_digest(anatomy));
@@ -108,8 +138,8 @@ pub fn build_atlas(
         name: name.to_string(),
         side: anatomy.side(),
         mesh: merged.mesh,
-        regions,
-        materials,
+        regions: regions(),
+        materials: materials(&layers),
         damping: Damping {
             rayleigh_alpha_per_s: RAYLEIGH.alpha_per_s,
             rayleigh_beta_s: RAYLEIGH.beta_s,

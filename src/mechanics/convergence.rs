@@ -9,7 +9,8 @@ use serde::Serialize;
 use super::error::MechanicsError;
 use super::validate::{Mechanics, ValidationOptions, mechanics};
 use crate::atlas::build::anatomy_digest;
-use crate::atlas::{Anatomy, Atlas, build_atlas};
+use crate::atlas::build::remesh_atlas;
+use crate::atlas::{Anatomy, Atlas};
 use crate::progress::Reporter;
 
 /// The bound on the transfer function's change against the finest drum (dB, every
@@ -119,12 +120,8 @@ impl<'a> DrumStudy<'a> {
             progress.log(&format!(
                 "eardrum convergence: the atlas rebuilt with {fine_edge:.3} mm drum triangles"
             ));
-            let mut fine = build_atlas(self.anatomy, &atlas.name, self.tet_edge_mm, fine_edge)
+            let fine = remesh_atlas(self.anatomy, atlas, self.tet_edge_mm, fine_edge)
                 .map_err(MechanicsError::Rebuild)?;
-            fine.regions = atlas.regions.clone();
-            fine.materials = atlas.materials.clone();
-            fine.damping = atlas.damping.clone();
-            fine.supports = atlas.supports.clone();
             let m = mechanics(&fine, fine.nodes(), options, progress)?;
             attachments.push(attachment(&fine));
             results.push((fine_edge, fine.mesh.triangles.len(), m));

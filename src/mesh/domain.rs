@@ -65,20 +65,8 @@ pub fn region_volumes<D: LabelledDomain + ?Sized>(domain: &D, spacing_mm: f64) -
                         if let Some(n) = counts.get_mut(usize::from(label)) {
                             *n += (SUBDIVISION as u64).pow(3);
                         }
-                        continue;
-                    }
-                    for c in 0..SUBDIVISION {
-                        for b in 0..SUBDIVISION {
-                            for a in 0..SUBDIVISION {
-                                let offset = Vector3::new(a as f64, b as f64, c as f64)
-                                    .add_scalar(0.5)
-                                    * spacing_mm;
-                                let l = usize::from(domain.label(&(corner + offset)));
-                                if let Some(n) = counts.get_mut(l) {
-                                    *n += 1;
-                                }
-                            }
-                        }
+                    } else {
+                        count_cells(domain, &corner, spacing_mm, &mut counts);
                     }
                 }
             }
@@ -96,6 +84,27 @@ pub fn region_volumes<D: LabelledDomain + ?Sized>(domain: &D, spacing_mm: f64) -
         *outside = 0.0;
     }
     volumes
+}
+
+/// Adds the label at the centre of each of the `SUBDIVISION³` cells of the block whose lowest
+/// corner is `corner` to `counts` (indexed by label; a label beyond them is not counted).
+fn count_cells<D: LabelledDomain + ?Sized>(
+    domain: &D,
+    corner: &Point3<f64>,
+    spacing_mm: f64,
+    counts: &mut [u64],
+) {
+    for n in 0..SUBDIVISION.pow(3) {
+        let (a, b, c) = (
+            n % SUBDIVISION,
+            n / SUBDIVISION % SUBDIVISION,
+            n / (SUBDIVISION * SUBDIVISION),
+        );
+        let offset = Vector3::new(a as f64, b as f64, c as f64).add_scalar(0.5) * spacing_mm;
+        if let Some(count) = counts.get_mut(usize::from(domain.label(&(corner + offset)))) {
+            *count += 1;
+        }
+    }
 }
 
 #[cfg(test)]
