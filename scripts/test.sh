@@ -25,7 +25,10 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 step "tests"
 # every test, the heavy ones (#[ignore = "heavy: ..."], which a plain `cargo test` leaves out) too;
-# an absent input (../shared, .testdata, python packages, chromium) is a failure, not a skip
+# an absent input (the test anatomy, .testdata, python packages, chromium) is a failure, not a
+# skip; the test anatomy is read from $OTOATLAS_SHARED_DIR, by default the shared folder beside
+# the checkout
+export OTOATLAS_SHARED_DIR="${OTOATLAS_SHARED_DIR:-$(cd .. && pwd)/shared}"
 OTOATLAS_REQUIRE_SHARED=1 OTOATLAS_REQUIRE_TESTDATA=1 OTOATLAS_REQUIRE_PYTHON=1 OTOATLAS_REQUIRE_BROWSER=1 cargo test --workspace --locked -- --include-ignored
 step "Slurm"
 # the Slurm job array on a one-node cluster started here (needs root for the daemons)

@@ -51,25 +51,23 @@ pub fn kuhn_cube() -> TetMesh {
     m
 }
 
-/// A file under the test anatomy folder (`$OTOATLAS_SHARED_DIR/anatomy`, or
-/// `../shared/anatomy` beside the crate; docs/anatomy.md, "Test anatomy"). `None` (with a
-/// note) when it is absent, unless `OTOATLAS_REQUIRE_SHARED=1` (set in CI), which makes its
-/// absence a failure.
+/// A file under the test anatomy folder, `$OTOATLAS_SHARED_DIR/anatomy` (docs/anatomy.md,
+/// "Test anatomy"; `scripts/test.sh` sets the variable). `None` (with a note) when the variable
+/// is unset or the file absent, unless `OTOATLAS_REQUIRE_SHARED=1` (set in CI), which makes
+/// its absence a failure.
 pub fn shared_anatomy(rel: &str) -> Option<PathBuf> {
-    let shared = std::env::var_os("OTOATLAS_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"));
-    let p = shared.join("anatomy").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
+    let p = std::env::var_os("OTOATLAS_SHARED_DIR")
+        .map(|shared| PathBuf::from(shared).join("anatomy").join(rel))
+        .filter(|p| p.exists());
+    let require = std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() == Ok("1");
     assert!(
-        std::env::var("OTOATLAS_REQUIRE_SHARED").as_deref() != Ok("1"),
-        "{} is missing and OTOATLAS_REQUIRE_SHARED=1",
-        p.display()
+        p.is_some() || !require,
+        "anatomy/{rel} is missing under $OTOATLAS_SHARED_DIR and OTOATLAS_REQUIRE_SHARED=1"
     );
-    eprintln!("skipped: {} not found", p.display());
-    None
+    if p.is_none() {
+        eprintln!("skipped: anatomy/{rel} not found under $OTOATLAS_SHARED_DIR");
+    }
+    p
 }
 
 /// Runs a python3 snippet that imports `module`; `None` (skip) when unavailable, unless
