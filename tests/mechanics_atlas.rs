@@ -5,7 +5,8 @@
 //! mechanics; the follower-pressure static solve at low pressure agrees with the harmonic
 //! solver at zero frequency (two independent code paths: Newton + Cholesky, complex LU); the
 //! real-time simulation under a constant pressure settles on the static solution; the
-//! pathologies (fixations, disarticulation) move the response as temporal bones do; rigid
+//! pathologies (fixations, disarticulation) move the response as temporal bones do; the
+//! eardrum stiffens under static pressure as temporal bones under middle-ear pressure do; rigid
 //! ossicles (the package check's model) answer within bone's own flexibility of the elastic
 //! ones; a static branch that cannot carry its load stops short, says where, and fails its
 //! gates.
@@ -17,8 +18,9 @@ use otoatlas::fem::HarmonicSolver;
 use otoatlas::mechanics::simulate::{SimulationOptions, simulate};
 use otoatlas::mechanics::udsp::GATE_PRESSURES_PA;
 use otoatlas::mechanics::{
-    Condition, MechanicalSystem, Ossicles, StaticCurve, TfaOptions, TransferFunction, UdspOptions,
-    literature_verdict, relative_verdict, static_pressure_curve, transfer_function,
+    Condition, Drive, MechanicalSystem, Ossicles, StaticCurve, TfaOptions, TransferFunction,
+    UdspOptions, evidence, literature_verdict, relative_verdict, static_pressure_curve,
+    transfer_function,
 };
 
 /// Every transfer-function gate passes but the 250-500 Hz slope, which the atlas fails at
@@ -326,6 +328,64 @@ fn low_static_pressure_matches_the_zero_frequency_harmonic_solution() {
         (nonlinear - linear).abs() < 0.01 * linear.abs(),
         "{nonlinear} vs {linear}"
     );
+}
+
+/// Lowering the middle ear's pressure stiffens the eardrum: Gyo & Goode 1987 (Auris Nasus
+/// Larynx 14:131, 5 temporal bones) measured the umbo's vibration below 2 kHz fall by
+/// 5.0 ± 1.0, 9.2 ± 1.3 and 13.1 ± 1.8 dB at 100, 200 and 300 mmH2O below the canal's
+/// pressure. The model's low-frequency limit is its static compliance du/dp there against at
+/// rest (docs/mechanics.md, "Evidence"); the curve's five-point slope is checked against
+/// equilibria solved 25 Pa either side. Murakami et al. 1997 (Acta Otolaryngol 117:390,
+/// 15 bones): pressure either way lowers the low-frequency vibration, the middle ear's
+/// negative pressure (p > 0 here) more than its positive. Nothing was fitted to either; the
+/// eardrum's bow, fitted to the same curve's asymmetry, shapes it.
+#[test]
+fn static_pressure_stiffens_the_ear_as_temporal_bones_under_middle_ear_pressure_do() {
+    let atlas = default_atlas().unwrap();
+    let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
+    let curve = static_pressure_curve(
+        &system,
+        &UdspOptions::default(),
+        &otoatlas::progress::Silent,
+    )
+    .unwrap();
+    let mm_h2o = 9.80665;
+    let exact = |p: f64| {
+        let solve = |q: f64| static_umbo(&system, q, 1e-8);
+        (solve(p + 25.0) - solve(p - 25.0)) / 50.0
+    };
+    let at_rest = curve.compliance_at(0.0).unwrap();
+    let first = 100.0 * mm_h2o;
+    for (p, c) in [(0.0, at_rest), (first, curve.compliance_at(first).unwrap())] {
+        let e = exact(p);
+        assert!((c / e - 1.0).abs() < 2e-3, "{p} Pa: {c} against {e}");
+    }
+    // the static sources only: no transfer function
+    let tf = TransferFunction {
+        drive: Drive::Eardrum,
+        drive_pa: 1.0,
+        ossicles: Ossicles::Elastic,
+        points: Vec::new(),
+    };
+    let gyo = evidence(&tf, &curve)
+        .into_iter()
+        .find(|e| e.source.starts_with("Gyo & Goode 1987"))
+        .unwrap();
+    for point in &gyo.points {
+        println!("{point:?}");
+    }
+    assert_eq!(gyo.points.len(), 3);
+    assert!(gyo.within_spread, "{gyo:?}");
+    for mm in [100.0, 200.0, 300.0] {
+        let p = mm * mm_h2o;
+        let loss = |q: f64| 20.0 * (curve.compliance_at(q).unwrap() / at_rest).log10();
+        assert!(
+            loss(p) < loss(-p) && loss(-p) < 0.0,
+            "{mm} mmH2O: {} dB, the opposite pressure {} dB",
+            loss(p),
+            loss(-p)
+        );
+    }
 }
 
 /// Backward Euler (one linearised solve per step, matrix-free CG with a stale Cholesky

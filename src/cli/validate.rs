@@ -223,14 +223,17 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
         );
     }
     for e in &validation.evidence {
+        let spread = match e.spread_range() {
+            (lo, hi) if lo < hi => format!("{lo:.1}-{hi:.1}"),
+            (lo, _) => format!("{lo}"),
+        };
         let _ = writeln!(
             text,
-            "  {}: RMS {:.1} {u} over {} point(s), worst {:+.1} {u}; within ±{} {u}: {}{}",
+            "  {}: RMS {:.1} {u} over {} point(s), worst {:+.1} {u}; within ±{spread} {u}: {}{}",
             e.source,
             e.rms_residual,
             e.points.len(),
             e.worst_residual,
-            e.spread,
             if e.within_spread { "yes" } else { "no" },
             e.fitted
                 .map(|why| format!(" (fitted: {why})"))

@@ -32,15 +32,31 @@ const CHIEN_2009_PHASE: (f64, f64) = (300.0, 72.0);
 /// The spread of that phase, ±degrees: Whittemore et al. 2004's ±15° at low frequencies (umbo
 /// phase of live ears), the nearest published spread.
 const PHASE_SPREAD_DEG: f64 = 15.0;
+/// Gyo & Goode 1987 (Auris Nasus Larynx 14:131; 5 fresh temporal bones, the umbo's vibration
+/// at 120 dB SPL at the eardrum): the loss of umbo vibration below 2 kHz when the middle
+/// ear's pressure is lowered by 100, 200 and 300 mmH2O, mean and SD over the bones:
+/// (mmH2O, loss dB, SD dB).
+const GYO_GOODE_1987: [(f64, f64, f64); 3] =
+    [(100.0, 5.0, 1.0), (200.0, 9.2, 1.3), (300.0, 13.1, 1.8)];
+/// Pa per mmH2O (conventional, 4 °C water at standard gravity).
+const PA_PER_MM_H2O: f64 = 9.80665;
 
 /// One measured point against the model.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EvidencePoint {
-    pub frequency_hz: f64,
+    /// The sound's frequency, for a point of a frequency response.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frequency_hz: Option<f64>,
+    /// The static pressure p = ear canal − middle ear (docs/mechanics.md, UDSP), for a point
+    /// measured under one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pressure_pa: Option<f64>,
     pub measured: f64,
     pub model: f64,
     /// model against measured: dB for magnitudes, degrees for phases.
     pub residual: f64,
+    /// The spread this residual is held to (±, in the residual's unit).
+    pub spread: f64,
 }
 
 /// One source's comparison.
@@ -56,8 +72,7 @@ pub struct Evidence {
     pub rms_residual: f64,
     /// The residual largest in size, with its sign.
     pub worst_residual: f64,
-    /// The spread every residual is held to (±), and where it comes from.
-    pub spread: f64,
+    /// Where the points' spreads come from.
     pub spread_source: &'static str,
     pub within_spread: bool,
     /// Set when the model was fitted to this source: then this entry is not evidence.
@@ -70,7 +85,7 @@ impl Evidence {
         quantity: &'static str,
         (unit, residual_unit): (&'static str, &'static str),
         points: Vec<EvidencePoint>,
-        (spread, spread_source): (f64, &'static str),
+        spread_source: &'static str,
     ) -> Evidence {
         let n = points.len().max(1) as f64;
         let rms_residual = (points.iter().map(|p| p.residual.powi(2)).sum::<f64>() / n).sqrt();
@@ -79,7 +94,8 @@ impl Evidence {
             .map(|p| p.residual)
             .max_by(|a, b| a.abs().total_cmp(&b.abs()))
             .unwrap_or(f64::NAN);
-        let within_spread = !points.is_empty() && points.iter().all(|p| p.residual.abs() <= spread);
+        let within_spread =
+            !points.is_empty() && points.iter().all(|p| p.residual.abs() <= p.spread);
         Evidence {
             source,
             quantity,
@@ -88,11 +104,21 @@ impl Evidence {
             points,
             rms_residual,
             worst_residual,
-            spread,
             spread_source,
             within_spread,
             fitted: None,
         }
+    }
+}
+
+impl Evidence {
+    /// The smallest and largest of the points' spreads.
+    pub fn spread_range(&self) -> (f64, f64) {
+        self.points
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p.spread), hi.max(p.spread))
+            })
     }
 }
 
@@ -105,10 +131,12 @@ pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
             let measured = peak_to_peak * std::f64::consts::SQRT_2;
             let model = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())?.exp();
             Some(EvidencePoint {
-                frequency_hz: f,
+                frequency_hz: Some(f),
+                pressure_pa: None,
                 measured,
                 model,
                 residual: 20.0 * (model / measured).log10(),
+                spread: MAGNITUDE_SPREAD_DB,
             })
         })
         .collect();
@@ -118,18 +146,17 @@ pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
          peak-to-peak and amplitude readings, which differ by 6 dB)",
         ("um/s/Pa", "dB"),
         goode,
-        (
-            MAGNITUDE_SPREAD_DB,
-            "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
-        ),
+        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
     ));
     let (f, measured) = CHIEN_2009_PHASE;
     let phase: Vec<EvidencePoint> = log_interpolate(tf, f, |p| p.phase_deg)
         .map(|model| EvidencePoint {
-            frequency_hz: f,
+            frequency_hz: Some(f),
+            pressure_pa: None,
             measured,
             model,
             residual: model - measured,
+            spread: PHASE_SPREAD_DEG,
         })
         .into_iter()
         .collect();
@@ -138,23 +165,50 @@ pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
         "phase of stapes velocity over ear-canal pressure, live ears",
         ("deg", "deg"),
         phase,
-        (
-            PHASE_SPREAD_DEG,
-            "Whittemore et al. 2004: spread of umbo phase at low frequencies",
-        ),
+        "Whittemore et al. 2004: spread of umbo phase at low frequencies",
     ));
+    if let Some(at_rest) = udsp.compliance_at(0.0) {
+        let loss: Vec<EvidencePoint> = GYO_GOODE_1987
+            .iter()
+            .filter_map(|&(mm_h2o, loss_db, sd_db)| {
+                // the middle ear below the canal pushes the eardrum medially: p > 0
+                let p = mm_h2o * PA_PER_MM_H2O;
+                let model = 20.0 * (udsp.compliance_at(p)? / at_rest).log10();
+                Some(EvidencePoint {
+                    frequency_hz: None,
+                    pressure_pa: Some(p),
+                    measured: -loss_db,
+                    model,
+                    residual: model + loss_db,
+                    spread: 2.0 * sd_db,
+                })
+            })
+            .collect();
+        all.push(Evidence::new(
+            "Gyo & Goode 1987, Auris Nasus Larynx 14:131",
+            "change of the umbo's vibration below 2 kHz with the middle ear's pressure 100, \
+             200 and 300 mmH2O below the canal's, temporal bones; the model's low-frequency \
+             limit: its static compliance du/dp there against at rest (the curve whose \
+             asymmetry the eardrum's bow was fitted to)",
+            ("dB", "dB"),
+            loss,
+            "the source's SD over 5 bones, ±2 SD",
+        ));
+    }
     if let Some(a) = udsp.asymmetry() {
         let mut asymmetry = Evidence::new(
             "the source study's atlas (1.76 ± 0.31)",
             "umbo displacement asymmetry |u(-4 kPa)|/|u(+4 kPa)| under static pressure",
             ("ratio", "ratio"),
             vec![EvidencePoint {
-                frequency_hz: 0.0,
+                frequency_hz: None,
+                pressure_pa: None,
                 measured: 1.76,
                 model: a,
                 residual: a - 1.76,
+                spread: 0.31,
             }],
-            (0.31, "the source study's ± 1 SD"),
+            "the source study's ± 1 SD",
         );
         asymmetry.fitted = Some(
             "the eardrum's radial bow was calibrated to this figure (docs/mechanics.md): \
@@ -186,6 +240,7 @@ mod tests {
     use super::*;
     use crate::mechanics::Ossicles;
     use crate::mechanics::tfa::{Drive, TfPoint};
+    use crate::mechanics::udsp::UdspPoint;
 
     /// A transfer function that is Goode's geometric-mean curve times `gain`, with a phase of
     /// 72° + `phase` at every frequency.
@@ -219,7 +274,7 @@ mod tests {
     #[test]
     fn a_model_on_the_measurements_has_no_residual_and_one_off_by_a_factor_has_its_decibels() {
         let exact = evidence(&goode_like(1.0, 0.0), &StaticCurve::default());
-        assert_eq!(exact.len(), 2, "no static curve, no asymmetry entry");
+        assert_eq!(exact.len(), 2, "no static curve, no static entries");
         let goode = &exact[0];
         assert_eq!(goode.points.len(), 7);
         assert!(
@@ -236,6 +291,73 @@ mod tests {
         assert!((off[0].worst_residual - want).abs() < 1e-9);
         assert!(!off[0].within_spread);
         assert!((off[1].worst_residual + 20.0).abs() < 1e-9 && !off[1].within_spread);
+    }
+
+    /// A static curve u(p) on the default sweep whose compliance falls by `db_per_pa` dB per
+    /// Pa (rises for p < 0).
+    fn stiffening_curve(db_per_pa: f64) -> StaticCurve {
+        // du/dp = c0·10^(−k p / 20) = c0·e^(−s p): u = c0·(1 − e^(−s p))/s
+        let (c0, s) = (1e-4, db_per_pa * std::f64::consts::LN_10 / 20.0);
+        let u = |p: f64| {
+            if s == 0.0 {
+                c0 * p
+            } else {
+                c0 * (1.0 - (-s * p).exp()) / s
+            }
+        };
+        StaticCurve {
+            points: (-16..=16)
+                .map(|k| {
+                    let p = 250.0 * k as f64;
+                    UdspPoint {
+                        pressure_pa: p,
+                        umbo_mm: u(p),
+                        iterations: 1,
+                        relative_residual: 0.0,
+                    }
+                })
+                .collect(),
+            ..StaticCurve::default()
+        }
+    }
+
+    #[test]
+    fn the_static_pressure_losses_are_read_from_the_compliance_and_a_linear_ear_has_none() {
+        let tf = goode_like(1.0, 0.0);
+        let gyo = |curve: &StaticCurve| {
+            evidence(&tf, curve)
+                .into_iter()
+                .find(|e| e.source.starts_with("Gyo & Goode"))
+                .unwrap()
+        };
+        // a linear ear loses nothing: its residuals are the measured losses, 13.1 dB at
+        // 300 mmH2O outside 2 SD (3.6 dB)
+        let linear = gyo(&stiffening_curve(0.0));
+        assert_eq!(linear.points.len(), 3);
+        for (point, (mm, loss, sd)) in linear.points.iter().zip(GYO_GOODE_1987) {
+            assert!((point.pressure_pa.unwrap() - mm * PA_PER_MM_H2O).abs() < 1e-9);
+            assert!(point.model.abs() < 1e-6 && (point.residual - loss).abs() < 1e-6);
+            assert_eq!(point.spread, 2.0 * sd);
+        }
+        assert!(!linear.within_spread);
+        // an ear losing k dB per Pa: k·p at each pressure (the curve's own interpolation
+        // error under 0.01 dB); 5 dB at 100 mmH2O fits the first point
+        let k = 5.0 / (100.0 * PA_PER_MM_H2O);
+        let stiffening = gyo(&stiffening_curve(k));
+        for point in &stiffening.points {
+            let want = -k * point.pressure_pa.unwrap();
+            assert!(
+                (point.model - want).abs() < 0.01,
+                "{point:?} against {want}"
+            );
+        }
+        assert!(stiffening.points[0].residual.abs() < 0.01);
+        // no static curve, no entry
+        assert!(
+            !evidence(&tf, &StaticCurve::default())
+                .iter()
+                .any(|e| e.source.starts_with("Gyo"))
+        );
     }
 
     #[test]

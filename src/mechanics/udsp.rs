@@ -146,6 +146,46 @@ impl StaticCurve {
         self.points.windows(2).all(|w| w[1].umbo_mm > w[0].umbo_mm)
             && self.points.iter().all(|q| q.pressure_pa * q.umbo_mm >= 0.0)
     }
+
+    /// The umbo's incremental compliance du/dp (mm/Pa) at `p` Pa: the slope at `p` of the
+    /// polynomial through the five computed points nearest it (on the default 250 Pa sweep
+    /// within 0.1 % of equilibria solved 25 Pa either side; docs/mechanics.md, "Evidence").
+    /// `None` where the curve has fewer points or one of the five lies over 750 Pa away.
+    /// The linearised response to a small sound about the static equilibrium at `p` has this
+    /// compliance as its low-frequency limit.
+    pub fn compliance_at(&self, p: f64) -> Option<f64> {
+        const POINTS: usize = 5;
+        const REACH_PA: f64 = 750.0;
+        let mut near: Vec<&UdspPoint> = self.points.iter().collect();
+        near.sort_by(|a, b| {
+            (a.pressure_pa - p)
+                .abs()
+                .total_cmp(&(b.pressure_pa - p).abs())
+        });
+        near.truncate(POINTS);
+        if near.len() < POINTS || near.iter().any(|q| (q.pressure_pa - p).abs() > REACH_PA) {
+            return None;
+        }
+        // d/dp of the Lagrange polynomial: Σ_j u_j L_j'(p), L_j' = Σ_{m≠j} 1/(p_j − p_m)
+        // Π_{l≠j,m} (p − p_l)/(p_j − p_l)
+        let x: Vec<f64> = near.iter().map(|q| q.pressure_pa).collect();
+        let slope = (0..POINTS)
+            .map(|j| {
+                let basis_slope: f64 = (0..POINTS)
+                    .filter(|&m| m != j)
+                    .map(|m| {
+                        (0..POINTS)
+                            .filter(|&l| l != j && l != m)
+                            .map(|l| (p - x[l]) / (x[j] - x[l]))
+                            .product::<f64>()
+                            / (x[j] - x[m])
+                    })
+                    .sum();
+                near[j].umbo_mm * basis_slope
+            })
+            .sum::<f64>();
+        slope.is_finite().then_some(slope)
+    }
 }
 
 /// The static pressure curve of `system`; the two branches are solved in parallel, each
@@ -387,4 +427,47 @@ fn solve_branch(
         failure: None,
         double_from_pa,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// u = a·tanh(p/b) sampled at `pressures`.
+    fn tanh_curve(pressures: impl Iterator<Item = f64>) -> StaticCurve {
+        StaticCurve {
+            points: pressures
+                .map(|p| UdspPoint {
+                    pressure_pa: p,
+                    umbo_mm: 0.2 * (p / 1500.0).tanh(),
+                    iterations: 1,
+                    relative_residual: 0.0,
+                })
+                .collect(),
+            ..StaticCurve::default()
+        }
+    }
+
+    #[test]
+    fn compliance_is_the_slope_of_the_curve_between_its_points_and_refused_where_it_is_sparse() {
+        let curve = tanh_curve((-16..=16).map(|k| 250.0 * k as f64));
+        // d/dp a·tanh(p/b) = (a/b)·sech²(p/b)
+        for p in [0.0_f64, 980.665, -1961.33, 2941.995, 3600.0] {
+            let exact = 0.2 / 1500.0 / (p / 1500.0).cosh().powi(2);
+            let c = curve.compliance_at(p).unwrap();
+            assert!(
+                (c / exact - 1.0).abs() < 1e-3,
+                "{p} Pa: {c} against {exact}"
+            );
+        }
+        // near the curve's end the nearest five points reach too far
+        assert!(curve.compliance_at(4800.0).is_none());
+        let sparse = tanh_curve((-4..=4).map(|k| 1000.0 * k as f64));
+        assert!(sparse.compliance_at(500.0).is_none());
+        assert!(
+            tanh_curve([0.0, 250.0].into_iter())
+                .compliance_at(0.0)
+                .is_none()
+        );
+    }
 }
