@@ -367,7 +367,7 @@ fn static_pressure_stiffens_the_ear_as_temporal_bones_under_middle_ear_pressure_
         ossicles: Ossicles::Elastic,
         points: Vec::new(),
     };
-    let gyo = evidence(&tf, &curve)
+    let gyo = evidence(&tf, &curve, 3.3)
         .into_iter()
         .find(|e| e.source.starts_with("Gyo & Goode 1987"))
         .unwrap();

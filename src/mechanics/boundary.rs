@@ -107,6 +107,46 @@ fn weighted_normal(triangles: &[[u32; 3]], x: &[Point3<f64>]) -> (Vector3<f64>, 
     })
 }
 
+/// Triangles of a surface, as node indices.
+type Triangles<'a> = &'a [[u32; 3]];
+
+/// The eardrum's lateral face and the footplate's medial face of `atlas`, each triangle
+/// checked against the `n` nodes.
+fn load_surfaces(
+    atlas: &Atlas,
+    n: usize,
+) -> Result<(Triangles<'_>, Triangles<'_>), MechanicsError> {
+    let eardrum = set(
+        &atlas.surfaces,
+        "surface",
+        sets::EARDRUM_LATERAL,
+        "sound and static pressure",
+    )?;
+    let footplate = set(
+        &atlas.surfaces,
+        "surface",
+        sets::FOOTPLATE_MEDIAL,
+        "cochlear load and stapes velocity",
+    )?;
+    if let Some(t) = eardrum
+        .iter()
+        .chain(footplate)
+        .find(|t| t.iter().any(|&v| v as usize >= n))
+    {
+        return Err(MechanicsError::BadAtlas {
+            what: format!("a load surface triangle {t:?} refers to a node >= {n}"),
+        });
+    }
+    Ok((eardrum, footplate))
+}
+
+/// The area (mm²) of `atlas`'s medial footplate face with its nodes at `nodes`: what the
+/// stapes's piston velocity times gives its volume velocity.
+pub fn footplate_area_mm2(atlas: &Atlas, nodes: &[Point3<f64>]) -> Result<f64, MechanicsError> {
+    let (_, footplate) = load_surfaces(atlas, nodes.len())?;
+    Ok(weighted_normal(footplate, nodes).1)
+}
+
 impl MechanicalSystem {
     /// The mechanical system of `atlas` with its rest shape at `nodes` (the atlas's own
     /// positions, or a package's registered ones).
@@ -168,26 +208,8 @@ impl MechanicalSystem {
                 }
             })
             .collect();
-        let eardrum = set(
-            &atlas.surfaces,
-            "surface",
-            sets::EARDRUM_LATERAL,
-            "sound and static pressure",
-        )?
-        .to_vec();
-        let footplate_tris = set(
-            &atlas.surfaces,
-            "surface",
-            sets::FOOTPLATE_MEDIAL,
-            "cochlear load and stapes velocity",
-        )?;
-        for t in eardrum.iter().chain(footplate_tris) {
-            if t.iter().any(|&v| v as usize >= n) {
-                return Err(MechanicsError::BadAtlas {
-                    what: format!("a load surface triangle {t:?} refers to a node >= {n}"),
-                });
-            }
-        }
+        let (eardrum, footplate_tris) = load_surfaces(atlas, n)?;
+        let eardrum = eardrum.to_vec();
         let (drum_normal, eardrum_area) = weighted_normal(&eardrum, nodes);
         let (fp_normal, fp_area) = weighted_normal(footplate_tris, nodes);
         let (medial, footplate_normal) = match (

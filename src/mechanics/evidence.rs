@@ -26,6 +26,11 @@ const GOODE_1994: [(f64, f64); 7] = [
 /// The inter-subject spread of the magnitude, ±dB: Whittemore et al. 2004 (Hear Res
 /// 187:85; 56 live ears, umbo velocity), the nearest published spread, taken as ±2 SD.
 const MAGNITUDE_SPREAD_DB: f64 = 10.0;
+/// Kringlebotn & Gundersen 1985 (J Acoust Soc Am 77:159; 68 temporal bones): the round
+/// window's volume displacement per sound pressure at the eardrum, level-averaged, "approximately
+/// flat below 1 kHz" at 6.8e-5 mm³/Pa: read at the one-third octaves below 1 kHz (Hz).
+const KRINGLEBOTN_1985_MM3_PER_PA: f64 = 6.8e-5;
+const KRINGLEBOTN_1985_HZ: [f64; 6] = [250.0, 315.0, 400.0, 500.0, 630.0, 800.0];
 /// Chien et al. 2009 (14 live ears): stapes velocity leads the pressure by 0.2 cycles at
 /// 0.3 kHz: (Hz, degrees).
 const CHIEN_2009_PHASE: (f64, f64) = (300.0, 72.0);
@@ -122,8 +127,13 @@ impl Evidence {
     }
 }
 
-/// The model's transfer function `tf` and static curve `udsp` against every source.
-pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
+/// The model's transfer function `tf` and static curve `udsp` against every source; the
+/// footplate's area (mm²) turns its piston velocity into the volume the cochlea takes.
+pub fn evidence(
+    tf: &TransferFunction,
+    udsp: &StaticCurve,
+    footplate_area_mm2: f64,
+) -> Vec<Evidence> {
     let mut all = Vec::new();
     let goode: Vec<EvidencePoint> = GOODE_1994
         .iter()
@@ -146,6 +156,33 @@ pub fn evidence(tf: &TransferFunction, udsp: &StaticCurve) -> Vec<Evidence> {
          peak-to-peak and amplitude readings, which differ by 6 dB)",
         ("um/s/Pa", "dB"),
         goode,
+        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+    ));
+    // the cochlear fluid is incompressible: the round window moves the volume the footplate
+    // does, |H_V| / (2π f) times its area (µm · mm² = 1e-3 mm³)
+    let volume: Vec<EvidencePoint> = KRINGLEBOTN_1985_HZ
+        .iter()
+        .filter_map(|&f| {
+            let velocity = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())?.exp();
+            let model = velocity / (2.0 * std::f64::consts::PI * f) * footplate_area_mm2 * 1e-3;
+            Some(EvidencePoint {
+                frequency_hz: Some(f),
+                pressure_pa: None,
+                measured: KRINGLEBOTN_1985_MM3_PER_PA,
+                model,
+                residual: 20.0 * (model / KRINGLEBOTN_1985_MM3_PER_PA).log10(),
+                spread: MAGNITUDE_SPREAD_DB,
+            })
+        })
+        .filter(|p| p.model > 0.0)
+        .collect();
+    all.push(Evidence::new(
+        "Kringlebotn & Gundersen 1985, J Acoust Soc Am 77:159",
+        "round-window volume displacement over eardrum pressure below 1 kHz, 68 temporal \
+         bones (level-averaged, flat at 6.8e-5 mm3/Pa); the model's footplate volume \
+         displacement",
+        ("mm3/Pa", "dB"),
+        volume,
         "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
     ));
     let (f, measured) = CHIEN_2009_PHASE;
@@ -271,26 +308,71 @@ mod tests {
         }
     }
 
+    /// The entry of the source whose name starts with `name`.
+    fn entry<'e>(all: &'e [Evidence], name: &str) -> &'e Evidence {
+        all.iter().find(|e| e.source.starts_with(name)).unwrap()
+    }
+
     #[test]
     fn a_model_on_the_measurements_has_no_residual_and_one_off_by_a_factor_has_its_decibels() {
-        let exact = evidence(&goode_like(1.0, 0.0), &StaticCurve::default());
-        assert_eq!(exact.len(), 2, "no static curve, no static entries");
-        let goode = &exact[0];
+        let exact = evidence(&goode_like(1.0, 0.0), &StaticCurve::default(), 3.0);
+        assert_eq!(exact.len(), 3, "no static curve, no static entries");
+        let goode = entry(&exact, "Goode");
         assert_eq!(goode.points.len(), 7);
         assert!(
             goode.rms_residual < 1e-9 && goode.within_spread,
             "{goode:?}"
         );
-        assert!(exact[1].rms_residual < 1e-9, "{:?}", exact[1]);
+        let chien = entry(&exact, "Chien");
+        assert!(chien.rms_residual < 1e-9, "{chien:?}");
 
         // 4x is +12.04 dB at every point: outside the ±10 dB spread; 20° of phase is outside
         // ±15°
-        let off = evidence(&goode_like(4.0, -20.0), &StaticCurve::default());
+        let off = evidence(&goode_like(4.0, -20.0), &StaticCurve::default(), 3.0);
         let want = 20.0 * 4f64.log10();
-        assert!((off[0].rms_residual - want).abs() < 1e-9);
-        assert!((off[0].worst_residual - want).abs() < 1e-9);
-        assert!(!off[0].within_spread);
-        assert!((off[1].worst_residual + 20.0).abs() < 1e-9 && !off[1].within_spread);
+        let goode = entry(&off, "Goode");
+        assert!((goode.rms_residual - want).abs() < 1e-9);
+        assert!((goode.worst_residual - want).abs() < 1e-9);
+        assert!(!goode.within_spread);
+        let chien = entry(&off, "Chien");
+        assert!((chien.worst_residual + 20.0).abs() < 1e-9 && !chien.within_spread);
+    }
+
+    #[test]
+    fn the_volume_displacement_is_the_piston_velocity_over_omega_times_the_footplate_area() {
+        // a stapes moving 6.8e-5 mm³/Pa over 2 mm² at every frequency: velocity
+        // 2π f · 3.4e-5 mm/Pa = 2π f · 0.034 µm/Pa
+        let area = 2.0;
+        let tf = TransferFunction {
+            drive: Drive::Eardrum,
+            drive_pa: 1.0,
+            ossicles: Ossicles::Elastic,
+            points: [200.0, 400.0, 800.0, 1000.0]
+                .iter()
+                .map(|&f| TfPoint {
+                    frequency_hz: f,
+                    magnitude_um_s_per_pa: 2.0 * std::f64::consts::PI * f * 0.034,
+                    phase_deg: 0.0,
+                    umbo_um_s_per_pa: 0.0,
+                })
+                .collect(),
+        };
+        let on = evidence(&tf, &StaticCurve::default(), area);
+        let volume = entry(&on, "Kringlebotn");
+        assert_eq!(volume.points.len(), 6);
+        // a velocity proportional to f is a line in log-log, which the interpolation between
+        // the computed points keeps exactly
+        assert!(
+            volume.rms_residual < 1e-9 && volume.within_spread,
+            "{volume:?}"
+        );
+        // the same stapes on a footplate 4 times larger moves 4 times the volume: +12 dB
+        let large = evidence(&tf, &StaticCurve::default(), 4.0 * area);
+        let volume_large = entry(&large, "Kringlebotn");
+        for (a, b) in volume.points.iter().zip(&volume_large.points) {
+            assert!((b.residual - a.residual - 20.0 * 4f64.log10()).abs() < 1e-9);
+        }
+        assert!(!volume_large.within_spread);
     }
 
     /// A static curve u(p) on the default sweep whose compliance falls by `db_per_pa` dB per
@@ -325,7 +407,7 @@ mod tests {
     fn the_static_pressure_losses_are_read_from_the_compliance_and_a_linear_ear_has_none() {
         let tf = goode_like(1.0, 0.0);
         let gyo = |curve: &StaticCurve| {
-            evidence(&tf, curve)
+            evidence(&tf, curve, 3.0)
                 .into_iter()
                 .find(|e| e.source.starts_with("Gyo & Goode"))
                 .unwrap()
@@ -354,7 +436,7 @@ mod tests {
         assert!(stiffening.points[0].residual.abs() < 0.01);
         // no static curve, no entry
         assert!(
-            !evidence(&tf, &StaticCurve::default())
+            !evidence(&tf, &StaticCurve::default(), 3.0)
                 .iter()
                 .any(|e| e.source.starts_with("Gyo"))
         );

@@ -6,7 +6,7 @@ use nalgebra::Point3;
 use rayon::join;
 use serde::Serialize;
 
-use super::boundary::MechanicalSystem;
+use super::boundary::{MechanicalSystem, footplate_area_mm2};
 use super::condition::Condition;
 use super::error::MechanicsError;
 use super::evidence::{Evidence, evidence};
@@ -116,9 +116,10 @@ pub fn validate_atlas(
 ) -> Result<Validation, MechanicsError> {
     let m = mechanics(atlas, atlas.nodes(), options, progress)?;
     let verdict = literature_verdict(&m.transfer_function, &m.udsp);
+    let footplate = footplate_area_mm2(atlas, atlas.nodes())?;
     Ok(Validation {
         condition: options.condition,
-        evidence: evidence(&m.transfer_function, &m.udsp),
+        evidence: evidence(&m.transfer_function, &m.udsp, footplate),
         mechanics: m,
         reference: None,
         verdict,
