@@ -153,26 +153,26 @@ fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
         .skip(1)
         .take_while(|l| l.starts_with("  "))
         .collect();
-    assert_eq!(evidence.len(), 5, "{stdout}");
+    assert_eq!(evidence.len(), 6, "{stdout}");
     assert!(
         evidence[0].starts_with("  Goode et al. 1994") && evidence[0].contains("over 7 point(s)"),
         "{stdout}"
     );
     // a source the atlas misses says so
     assert!(
-        evidence[1].starts_with("  Kringlebotn & Gundersen 1985")
-            && evidence[1].contains("within ±10 dB: no"),
+        evidence[2].starts_with("  Kringlebotn & Gundersen 1985")
+            && evidence[2].contains("within ±10 dB: no"),
         "{stdout}"
     );
     // the static-pressure source: three pressures, each held to its own 2 SD
     assert!(
-        evidence[3].starts_with("  Gyo & Goode 1987")
-            && evidence[3].contains("over 3 point(s)")
-            && evidence[3].contains("within ±2.0-3.6 dB: yes"),
+        evidence[4].starts_with("  Gyo & Goode 1987")
+            && evidence[4].contains("over 3 point(s)")
+            && evidence[4].contains("within ±2.0-3.6 dB: yes"),
         "{stdout}"
     );
     assert!(
-        evidence[4].contains("(fitted: ") && !evidence[..4].iter().any(|e| e.contains("fitted")),
+        evidence[5].contains("(fitted: ") && !evidence[..5].iter().any(|e| e.contains("fitted")),
         "{stdout}"
     );
     let tfa_done = format!("TFA: {frequencies} frequencies solved");

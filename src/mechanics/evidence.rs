@@ -26,6 +26,10 @@ const GOODE_1994: [(f64, f64); 7] = [
 /// The inter-subject spread of the magnitude, ±dB: Whittemore et al. 2004 (Hear Res
 /// 187:85; 56 live ears, umbo velocity), the nearest published spread, taken as ±2 SD.
 const MAGNITUDE_SPREAD_DB: f64 = 10.0;
+/// Aibara, Welsh, Puria & Goode 2001 (Hear Res 152:100; 12 fresh temporal bones): the mean
+/// stapes footplate velocity over ear-canal pressure reached its maximum, 0.33 mm/s/Pa, at
+/// 1.0 kHz: (Hz, µm/s/Pa).
+const AIBARA_2001: (f64, f64) = (1000.0, 330.0);
 /// Kringlebotn & Gundersen 1985 (J Acoust Soc Am 77:159; 68 temporal bones): the round
 /// window's volume displacement per sound pressure at the eardrum, level-averaged, "approximately
 /// flat below 1 kHz" at 6.8e-5 mm³/Pa: read at the one-third octaves below 1 kHz (Hz).
@@ -156,6 +160,26 @@ pub fn evidence(
          peak-to-peak and amplitude readings, which differ by 6 dB)",
         ("um/s/Pa", "dB"),
         goode,
+        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+    ));
+    let (f, measured) = AIBARA_2001;
+    let peak: Vec<EvidencePoint> = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())
+        .map(|ln| EvidencePoint {
+            frequency_hz: Some(f),
+            pressure_pa: None,
+            measured,
+            model: ln.exp(),
+            residual: 20.0 * (ln.exp() / measured).log10(),
+            spread: MAGNITUDE_SPREAD_DB,
+        })
+        .into_iter()
+        .collect();
+    all.push(Evidence::new(
+        "Aibara et al. 2001, Hear Res 152:100",
+        "stapes velocity over ear-canal pressure at 1.0 kHz, where the mean of 12 temporal \
+         bones peaks (0.33 mm/s/Pa)",
+        ("um/s/Pa", "dB"),
+        peak,
         "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
     ));
     // the cochlear fluid is incompressible: the round window moves the volume the footplate
@@ -316,7 +340,12 @@ mod tests {
     #[test]
     fn a_model_on_the_measurements_has_no_residual_and_one_off_by_a_factor_has_its_decibels() {
         let exact = evidence(&goode_like(1.0, 0.0), &StaticCurve::default(), 3.0);
-        assert_eq!(exact.len(), 3, "no static curve, no static entries");
+        assert_eq!(exact.len(), 4, "no static curve, no static entries");
+        // Goode's 1 kHz (106 µm/s/Pa peak-to-peak, √2 times as the geometric mean) against
+        // Aibara's 330 µm/s/Pa
+        let aibara = entry(&exact, "Aibara");
+        let want = 20.0 * (106.0 * std::f64::consts::SQRT_2 / 330.0).log10();
+        assert!((aibara.worst_residual - want).abs() < 1e-9, "{aibara:?}");
         let goode = entry(&exact, "Goode");
         assert_eq!(goode.points.len(), 7);
         assert!(
