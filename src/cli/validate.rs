@@ -12,8 +12,8 @@ use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::{Anatomy, load_atlas};
 use crate::mechanics::{
-    Condition, Drive, DrumConvergence, DrumStudy, Ossicles, ValidationOptions, validate_atlas,
-    validate_package,
+    Condition, ConditionChange, Drive, DrumConvergence, DrumStudy, Ossicles, ValidationOptions,
+    validate_atlas, validate_package,
 };
 use crate::progress::Reporter;
 use crate::report::mechanics_plots::validation_plots;
@@ -241,6 +241,7 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
             u = e.residual_unit,
         );
     }
+    changes_text(&mut text, &validation.changes);
     if let Some(c) = &convergence {
         convergence_text(&mut text, c);
     }
@@ -251,11 +252,45 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
         "condition": validation.condition,
         "verdict": v,
         "evidence": validation.evidence,
+        "changes": validation.changes,
         "mechanics": m,
         "reference": validation.reference,
         "convergence": convergence,
     });
     Ok(Report { text, json })
+}
+
+/// What a condition changes against the normal ear, each source's lines under it.
+fn changes_text(text: &mut String, changes: &[ConditionChange]) {
+    if changes.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        text,
+        "changes against the normal ear (velocity over ear-canal pressure, dB), beside \
+         temporal bones:"
+    );
+    let mut source = "";
+    for c in changes {
+        if c.source != source {
+            source = c.source;
+            let _ = writeln!(text, "  {source}:");
+        }
+        let range = match (c.low_db, c.high_db) {
+            (Some(low), Some(high)) => format!("{low:.1} to {high:.1}"),
+            (Some(low), None) => format!("above {low:.1}"),
+            (None, Some(high)) => format!("below {high:.1}"),
+            (None, None) => "any".into(),
+        };
+        let _ = writeln!(
+            text,
+            "    {:6} {:5.0} Hz {:+7.1} dB; expected {range} dB: {}",
+            c.velocity.name(),
+            c.frequency_hz,
+            c.model_db,
+            if c.within { "yes" } else { "no" },
+        );
+    }
 }
 
 /// The convergence study's table: each drum against the finest.
@@ -298,5 +333,60 @@ fn positive_mm(text: &str) -> Result<f64, String> {
         _ => Err(format!(
             "bending thickness {text:?}: expected a number of mm > 0"
         )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mechanics::Velocity;
+
+    #[test]
+    fn a_condition_s_changes_are_listed_under_their_sources_with_open_ranges_said_so() {
+        let change = |velocity, f, model_db, low_db, high_db, within, source| ConditionChange {
+            velocity,
+            frequency_hz: f,
+            model_db,
+            low_db,
+            high_db,
+            within,
+            source,
+        };
+        let mut text = String::new();
+        changes_text(
+            &mut text,
+            &[
+                change(Velocity::Stapes, 250.0, -77.1, None, Some(-40.0), true, "A"),
+                change(
+                    Velocity::Stapes,
+                    500.0,
+                    -30.0,
+                    None,
+                    Some(-40.0),
+                    false,
+                    "A",
+                ),
+                change(Velocity::Umbo, 250.0, 2.5, Some(0.0), None, true, "B"),
+            ],
+        );
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 6, "{text}");
+        assert_eq!(lines[1], "  A:");
+        assert_eq!(
+            lines[2],
+            "    stapes   250 Hz   -77.1 dB; expected below -40.0 dB: yes"
+        );
+        assert!(
+            lines[3].ends_with("-30.0 dB; expected below -40.0 dB: no"),
+            "{text}"
+        );
+        assert_eq!(lines[4], "  B:");
+        assert!(
+            lines[5].ends_with("+2.5 dB; expected above 0.0 dB: yes"),
+            "{text}"
+        );
+        let mut none = String::new();
+        changes_text(&mut none, &[]);
+        assert!(none.is_empty());
     }
 }

@@ -1,12 +1,14 @@
 //! Mechanical validation and simulation of an atlas (or of a package: the atlas with
 //! registered node positions): umbo displacement under static pressure (UDSP), the stapes
 //! velocity transfer function (TFA), the eardrum mesh's convergence, their verdicts against literature bands and against a
-//! reference atlas, pathologies of the chain (`condition`), and real-time implicit time
+//! reference atlas, pathologies of the chain (`condition`) and what they change against
+//! temporal bones (`condition_evidence`), and real-time implicit time
 //! stepping. Method, bands (and where they come
 //! from) and figures: `docs/mechanics.md`; the FEM formulas: `docs/fem.md`.
 
 pub mod boundary;
 pub mod condition;
+pub mod condition_evidence;
 pub mod convergence;
 pub mod error;
 pub mod evidence;
@@ -18,6 +20,7 @@ pub mod verdict;
 
 pub use boundary::{MechanicalSystem, Ossicles, TiedPoint};
 pub use condition::{Condition, FIXATION_FACTOR};
+pub use condition_evidence::{ConditionChange, Velocity, condition_changes};
 pub use convergence::{ConvergenceLevel, DrumConvergence, DrumStudy};
 pub use error::MechanicsError;
 pub use evidence::{Evidence, EvidencePoint, evidence};

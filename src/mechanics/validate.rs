@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use super::boundary::{MechanicalSystem, footplate_area_mm2};
 use super::condition::Condition;
+use super::condition_evidence::{ConditionChange, condition_changes};
 use super::error::MechanicsError;
 use super::evidence::{Evidence, evidence};
 use super::tfa::{TfaOptions, TransferFunction, transfer_function};
@@ -106,6 +107,11 @@ pub struct Validation {
     /// package, whose gates compare it with its atlas.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub evidence: Vec<Evidence>,
+    /// An atlas under a condition: what the condition changes against the normal ear, beside
+    /// what temporal bones showed (`condition_evidence`); empty for the normal ear and for a
+    /// package.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub changes: Vec<ConditionChange>,
 }
 
 /// Validates the atlas against the literature bands.
@@ -117,8 +123,25 @@ pub fn validate_atlas(
     let m = mechanics(atlas, atlas.nodes(), options, progress)?;
     let verdict = literature_verdict(&m.transfer_function, &m.udsp);
     let footplate = footplate_area_mm2(atlas, atlas.nodes())?;
+    let changes = if options.condition.is_normal() {
+        Vec::new()
+    } else {
+        progress.log("transfer function of the normal ear (the condition's changes)");
+        let normal = ValidationOptions {
+            condition: Condition::Normal,
+            udsp: None,
+            ..options.clone()
+        };
+        let n = mechanics(atlas, atlas.nodes(), &normal, progress)?;
+        condition_changes(
+            options.condition,
+            &n.transfer_function,
+            &m.transfer_function,
+        )
+    };
     Ok(Validation {
         condition: options.condition,
+        changes,
         evidence: evidence(&m.transfer_function, &m.udsp, footplate),
         mechanics: m,
         reference: None,
@@ -161,5 +184,6 @@ pub fn validate_package_against(
         reference: Some(reference.clone()),
         verdict,
         evidence: Vec::new(),
+        changes: Vec::new(),
     })
 }

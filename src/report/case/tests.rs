@@ -515,6 +515,7 @@ fn validation() -> crate::mechanics::Validation {
         reference: Some(atlas),
         verdict,
         evidence: Vec::new(),
+        changes: Vec::new(),
     }
 }
 
