@@ -24,8 +24,9 @@
 //!   bones).
 //! - \[TC13\] Todd & Creighton 2013, Ann Otol Rhinol Laryngol 122:60 ("Malleus and incus:
 //!   correlates of size", 41 adult crania): mallei weighed 21.2–30.7 mg, incudes 24.4–37.4 mg.
-//! - \[A01\] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance
-//!   ≈ 2e10 Pa·s/m³; with a footplate area of 3.2 mm² the dashpot is Z_c·A² ≈ 0.2 N·s/m.
+//! - \[A01\] Aibara, Welsh, Puria, Goode 2001, Hear Res 152:100: cochlear input impedance of
+//!   12 fresh temporal bones, mean 21.1 GΩ (MKS acoustic, Pa·s/m³ × 1e9), flat from 0.1 to
+//!   5 kHz, angle near 0; with a footplate area of 3.3 mm² the dashpot is Z_c·A² ≈ 0.23 N·s/m.
 
 use super::region::{MembraneRegion, Region};
 
@@ -157,14 +158,19 @@ pub const RAYLEIGH: Rayleigh = Rayleigh {
     beta_s: 1.0e-4,
 };
 
-/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, the low end of the temporal-bone range (about 1e10 to 2e10 \[A01\]; Merchant, Ravicz & Rosowski 1996, not checked here).
+/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, about half the mean of \[A01\] (2.11e10).
+/// Set with the first atlas's calibrations (commit 51522bb) and later labelled "the low end of
+/// about 1e10 to 2e10", which no source in hand supports: a chosen value, not literature. At
+/// \[A01\]'s mean the default atlas fails a second gate and Chien et al.'s phase
+/// (docs/mechanics.md, "Parameters").
 pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 1.0e10;
 
 /// Where the damping values come from (stored with them in the atlas file).
-pub const DAMPING_SOURCE: &str = "literature, not calibrated (docs/mechanics.md): Rayleigh \
-     beta 1.0e-4 s, the eardrum's value in Wang, Gan et al. 2016, Biomech Model \
-     Mechanobiol 15:1263, Table 2, and alpha 0; cochlear impedance 1e10 Pa s/m^3, the low end \
-     of about 1e10 to 2e10 in Aibara et al. 2001, Hear Res 152:100";
+pub const DAMPING_SOURCE: &str = "Rayleigh damping from the literature, not calibrated \
+     (docs/mechanics.md): beta 1.0e-4 s, the eardrum's value in Wang, Gan et al. 2016, Biomech \
+     Model Mechanobiol 15:1263, Table 2, and alpha 0; cochlear impedance 1e10 Pa s/m^3, CHOSEN \
+     with the first atlas's calibrations: about half the mean of 12 temporal bones in Aibara \
+     et al. 2001, Hear Res 152:100 (2.11e10)";
 
 /// Total stiffness of the stapedial annular ligament (N/m), shared by isotropic springs on
 /// the footplate rim nodes: 120 N/m, the AFM value of \[Kw15\] (measured at one point of the
