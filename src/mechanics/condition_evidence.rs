@@ -41,6 +41,7 @@ pub struct ConditionChange {
 }
 
 /// What a measurement says of one velocity at some frequencies.
+#[derive(Clone, Copy)]
 struct Measured {
     velocity: Velocity,
     frequencies_hz: &'static [f64],
@@ -48,6 +49,7 @@ struct Measured {
     source: &'static str,
 }
 
+#[derive(Clone, Copy)]
 enum Range {
     /// Between two figures (dB), either end open.
     Between(Option<f64>, Option<f64>),
@@ -133,31 +135,27 @@ pub fn condition_changes(
     };
     measured(condition)
         .into_iter()
-        .flat_map(|m| {
-            m.frequencies_hz
-                .iter()
-                .filter_map(|&f| {
-                    let model_db = change(m.velocity, f)?;
-                    let (low_db, high_db) = match m.range {
-                        Range::Between(low, high) => (low, high),
-                        Range::AboutTheStapes(db) => {
-                            let stapes = change(Velocity::Stapes, f)?;
-                            (Some(stapes - db), Some(stapes + db))
-                        }
-                    };
-                    let within = low_db.is_none_or(|low| model_db >= low)
-                        && high_db.is_none_or(|high| model_db <= high);
-                    Some(ConditionChange {
-                        velocity: m.velocity,
-                        frequency_hz: f,
-                        model_db,
-                        low_db,
-                        high_db,
-                        within,
-                        source: m.source,
-                    })
-                })
-                .collect::<Vec<_>>()
+        .flat_map(|m| m.frequencies_hz.iter().map(move |&f| (m, f)))
+        .filter_map(|(m, f)| {
+            let model_db = change(m.velocity, f)?;
+            let (low_db, high_db) = match m.range {
+                Range::Between(low, high) => (low, high),
+                Range::AboutTheStapes(db) => {
+                    let stapes = change(Velocity::Stapes, f)?;
+                    (Some(stapes - db), Some(stapes + db))
+                }
+            };
+            let within = low_db.is_none_or(|low| model_db >= low)
+                && high_db.is_none_or(|high| model_db <= high);
+            Some(ConditionChange {
+                velocity: m.velocity,
+                frequency_hz: f,
+                model_db,
+                low_db,
+                high_db,
+                within,
+                source: m.source,
+            })
         })
         .collect()
 }

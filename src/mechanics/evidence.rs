@@ -26,6 +26,9 @@ const GOODE_1994: [(f64, f64); 7] = [
 /// The inter-subject spread of the magnitude, ±dB: Whittemore et al. 2004 (Hear Res
 /// 187:85; 56 live ears, umbo velocity), the nearest published spread, taken as ±2 SD.
 const MAGNITUDE_SPREAD_DB: f64 = 10.0;
+/// Where that spread comes from.
+const MAGNITUDE_SPREAD_SOURCE: &str =
+    "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity";
 /// Aibara, Welsh, Puria & Goode 2001 (Hear Res 152:100; 12 fresh temporal bones): the mean
 /// stapes footplate velocity over ear-canal pressure reached its maximum, 0.33 mm/s/Pa, at
 /// 1.0 kHz: (Hz, µm/s/Pa).
@@ -142,16 +145,12 @@ pub fn evidence(
     let goode: Vec<EvidencePoint> = GOODE_1994
         .iter()
         .filter_map(|&(f, peak_to_peak)| {
-            let measured = peak_to_peak * std::f64::consts::SQRT_2;
-            let model = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())?.exp();
-            Some(EvidencePoint {
-                frequency_hz: Some(f),
-                pressure_pa: None,
-                measured,
+            let model = magnitude_at(tf, f)?;
+            Some(magnitude_point(
+                f,
+                peak_to_peak * std::f64::consts::SQRT_2,
                 model,
-                residual: 20.0 * (model / measured).log10(),
-                spread: MAGNITUDE_SPREAD_DB,
-            })
+            ))
         })
         .collect();
     all.push(Evidence::new(
@@ -160,18 +159,11 @@ pub fn evidence(
          peak-to-peak and amplitude readings, which differ by 6 dB)",
         ("um/s/Pa", "dB"),
         goode,
-        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+        MAGNITUDE_SPREAD_SOURCE,
     ));
     let (f, measured) = AIBARA_2001;
-    let peak: Vec<EvidencePoint> = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())
-        .map(|ln| EvidencePoint {
-            frequency_hz: Some(f),
-            pressure_pa: None,
-            measured,
-            model: ln.exp(),
-            residual: 20.0 * (ln.exp() / measured).log10(),
-            spread: MAGNITUDE_SPREAD_DB,
-        })
+    let peak: Vec<EvidencePoint> = magnitude_at(tf, f)
+        .map(|model| magnitude_point(f, measured, model))
         .into_iter()
         .collect();
     all.push(Evidence::new(
@@ -180,23 +172,16 @@ pub fn evidence(
          bones peaks (0.33 mm/s/Pa)",
         ("um/s/Pa", "dB"),
         peak,
-        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+        MAGNITUDE_SPREAD_SOURCE,
     ));
     // the cochlear fluid is incompressible: the round window moves the volume the footplate
     // does, |H_V| / (2π f) times its area (µm · mm² = 1e-3 mm³)
     let volume: Vec<EvidencePoint> = KRINGLEBOTN_1985_HZ
         .iter()
         .filter_map(|&f| {
-            let velocity = log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln())?.exp();
+            let velocity = magnitude_at(tf, f)?;
             let model = velocity / (2.0 * std::f64::consts::PI * f) * footplate_area_mm2 * 1e-3;
-            Some(EvidencePoint {
-                frequency_hz: Some(f),
-                pressure_pa: None,
-                measured: KRINGLEBOTN_1985_MM3_PER_PA,
-                model,
-                residual: 20.0 * (model / KRINGLEBOTN_1985_MM3_PER_PA).log10(),
-                spread: MAGNITUDE_SPREAD_DB,
-            })
+            Some(magnitude_point(f, KRINGLEBOTN_1985_MM3_PER_PA, model))
         })
         .filter(|p| p.model > 0.0)
         .collect();
@@ -207,7 +192,7 @@ pub fn evidence(
          displacement",
         ("mm3/Pa", "dB"),
         volume,
-        "Whittemore et al. 2004, Hear Res 187:85: inter-subject spread of umbo velocity",
+        MAGNITUDE_SPREAD_SOURCE,
     ));
     let (f, measured) = CHIEN_2009_PHASE;
     let phase: Vec<EvidencePoint> = log_interpolate(tf, f, |p| p.phase_deg)
@@ -278,6 +263,24 @@ pub fn evidence(
         all.push(asymmetry);
     }
     all
+}
+
+/// |H_V| (µm/s/Pa) at `f` Hz, interpolated linearly in log-log between the computed points.
+fn magnitude_at(tf: &TransferFunction, f: f64) -> Option<f64> {
+    log_interpolate(tf, f, |p| p.magnitude_um_s_per_pa.ln()).map(f64::exp)
+}
+
+/// A magnitude measured at `f` Hz against the model's, the residual in dB, held to the
+/// inter-subject spread.
+fn magnitude_point(f: f64, measured: f64, model: f64) -> EvidencePoint {
+    EvidencePoint {
+        frequency_hz: Some(f),
+        pressure_pa: None,
+        measured,
+        model,
+        residual: 20.0 * (model / measured).log10(),
+        spread: MAGNITUDE_SPREAD_DB,
+    }
 }
 
 /// `value` of the transfer function at `f` Hz, interpolated linearly in log frequency
