@@ -135,6 +135,46 @@ impl TransferFunction {
         let db = a * xv * xv + b * xv + c;
         Some((xv.exp(), 10f64.powf(db / 20.0)))
     }
+
+    /// Centre (Hz, geometric) of the band around the maximum where |H_V| stays within
+    /// `within_db` of it, each edge interpolated linearly in (log f, dB) between the samples
+    /// that straddle it, or the first or last frequency where the curve does not fall that far.
+    ///
+    /// Where the frequency of a maximum can jump by a whole sample spacing for a fraction of
+    /// a dB (a flat top, two samples nearly level), this moves with the curve: it is what the
+    /// consistency gate compares (`verdict::relative_verdict`).
+    pub fn maximum_band_centre(&self, within_db: f64) -> Option<f64> {
+        let p = &self.points;
+        let (i, top) = p
+            .iter()
+            .enumerate()
+            .filter(|(_, q)| q.magnitude_um_s_per_pa > 0.0 && q.frequency_hz > 0.0)
+            .max_by(|a, b| {
+                a.1.magnitude_um_s_per_pa
+                    .total_cmp(&b.1.magnitude_um_s_per_pa)
+            })?;
+        let level = top.db() - within_db;
+        // the edge between the last sample inside the band (`inside`) and the next one out
+        let edge = |inside: &TfPoint, outside: Option<&TfPoint>| match outside {
+            Some(out) if out.db() < level => {
+                let t = (inside.db() - level) / (inside.db() - out.db());
+                inside.frequency_hz.ln() + t * (out.frequency_hz.ln() - inside.frequency_hz.ln())
+            }
+            _ => inside.frequency_hz.ln(),
+        };
+        let mut lo = i;
+        while lo > 0 && p[lo - 1].db() >= level {
+            lo -= 1;
+        }
+        let mut hi = i;
+        while hi + 1 < p.len() && p[hi + 1].db() >= level {
+            hi += 1;
+        }
+        let low = edge(&p[lo], lo.checked_sub(1).map(|k| &p[k]));
+        let high = edge(&p[hi], p.get(hi + 1));
+        let centre = (0.5 * (low + high)).exp();
+        centre.is_finite().then_some(centre)
+    }
 }
 
 /// Nodal force amplitudes (µN) of the drive.
@@ -298,4 +338,100 @@ pub fn transfer_function(
         ossicles: options.ossicles,
         points,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve(points: &[(f64, f64)]) -> TransferFunction {
+        TransferFunction {
+            drive: Drive::Eardrum,
+            drive_pa: 1.0,
+            ossicles: Ossicles::Elastic,
+            points: points
+                .iter()
+                .map(|&(f, m)| TfPoint {
+                    frequency_hz: f,
+                    magnitude_um_s_per_pa: m,
+                    phase_deg: 0.0,
+                    umbo_um_s_per_pa: 0.0,
+                })
+                .collect(),
+        }
+    }
+
+    /// A maximum symmetric in log f (a parabola in dB, 6 dB per squared natural log of the
+    /// frequency ratio) whose top lies midway between two one-third-octave samples: the
+    /// samples are symmetric about it, so the band's centre is its frequency.
+    #[test]
+    fn the_band_centre_of_a_symmetric_maximum_is_its_frequency() {
+        let f0 = 1000.0 * 2f64.powf(1.0 / 6.0);
+        let db = |f: f64| 40.0 - 6.0 * (f / f0).ln().powi(2);
+        let tf = curve(
+            &third_octaves(250.0, 8000.0)
+                .into_iter()
+                .map(|f| (f, 10f64.powf(db(f) / 20.0)))
+                .collect::<Vec<_>>(),
+        );
+        for within in [0.5, 1.0, 3.0] {
+            let centre = tf.maximum_band_centre(within).unwrap();
+            assert!((centre / f0 - 1.0).abs() < 1e-9, "{within} dB: {centre}");
+        }
+    }
+
+    /// Two samples of a flat top three tenths of a dB apart trade places: the parabola's
+    /// maximum moves by 2.8 % (689 → 708 Hz), the band's centre by 0.04 %.
+    #[test]
+    fn a_flat_top_moves_the_band_centre_less_than_the_maximum() {
+        let shape = |a: f64, b: f64| {
+            curve(&[
+                (400.0, 120.0),
+                (500.0, 166.0),
+                (630.0, a),
+                (794.0, b),
+                (1000.0, 130.0),
+                (1260.0, 100.0),
+            ])
+        };
+        let (left, right) = (shape(168.3, 168.0), shape(168.0, 168.3));
+        let (fl, fr) = (left.peak().unwrap().0, right.peak().unwrap().0);
+        let (cl, cr) = (
+            left.maximum_band_centre(1.0).unwrap(),
+            right.maximum_band_centre(1.0).unwrap(),
+        );
+        assert!(fr / fl > 1.02, "the parabola's maxima {fl} and {fr}");
+        assert!(
+            (cr / cl - 1.0).abs() < 1e-3,
+            "the band's centres {cl} and {cr}"
+        );
+        // the band runs from between 400 and 500 Hz to between 794 and 1000 Hz, each edge
+        // where the straight line in (ln f, dB) between those samples crosses the level
+        let db = |m: f64| 20.0 * m.log10();
+        let level = db(168.3) - 1.0;
+        let crossing = |(f_in, m_in): (f64, f64), (f_out, m_out): (f64, f64)| {
+            let t = (db(m_in) - level) / (db(m_in) - db(m_out));
+            f_in.ln() + t * (f_out.ln() - f_in.ln())
+        };
+        let low = crossing((500.0, 166.0), (400.0, 120.0));
+        let high = crossing((794.0, 168.0), (1000.0, 130.0));
+        let expected = (0.5 * (low + high)).exp();
+        assert!((cl / expected - 1.0).abs() < 1e-12, "{cl} vs {expected}");
+    }
+
+    /// A maximum at the end of the sweep: the band runs to the last sample.
+    #[test]
+    fn a_band_that_does_not_close_ends_at_the_last_sample() {
+        let tf = curve(&[(250.0, 10.0), (500.0, 80.0), (1000.0, 105.0)]);
+        let centre = tf.maximum_band_centre(1.0).unwrap();
+        // the low edge where the level, 1 dB under 105, crosses the line from 1000 to 500 Hz
+        let (top, out) = (20.0 * 105f64.log10(), 20.0 * 80f64.log10());
+        let low = 1000f64.ln() + (1.0 / (top - out)) * (500f64.ln() - 1000f64.ln());
+        let expected = (0.5 * (low + 1000f64.ln())).exp();
+        assert!(
+            (centre / expected - 1.0).abs() < 1e-12,
+            "{centre} vs {expected}"
+        );
+        assert_eq!(curve(&[]).maximum_band_centre(1.0), None);
+    }
 }

@@ -526,7 +526,7 @@ fn a_validated_package_shows_its_gates_and_charts() {
     let page = |mechanics| html_with(&f, Accuracy::NoSegmentation, mechanics);
     let html = page(Some(&v));
     is_self_contained(&html);
-    // 3 magnitudes, 3 phases (to 4 kHz), the peak ratio: only the magnitude at 4 kHz fails
+    // 3 magnitudes, 3 phases (to 4 kHz), the band-centre ratio: only the magnitude at 4 kHz fails
     assert_eq!(v.verdict.gates.len(), 7);
     assert!(html.contains("1 mechanical gate against the atlas fails"));
     assert!(html.contains("1 of 7 gates fail"));
