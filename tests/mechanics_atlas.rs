@@ -23,14 +23,15 @@ use otoatlas::mechanics::{
     static_pressure_curve, transfer_function,
 };
 
-/// Every transfer-function gate passes but the 250-500 Hz slope, which the atlas fails at
-/// 9.13 dB/octave (band 3-9), as the fine atlas of the same anatomy does at 9.99: its
-/// suspension resonates near 300 Hz (docs/mechanics.md, "What the notch at 315 Hz is"). It
-/// passed at 9.00 while its bones weighed what its lattice held, 5-7 % less than the anatomy
-/// ("Masses that do not depend on the mesh"). Not evidence either way: the test pins where the
-/// atlas stands on that gate.
+/// Every transfer-function gate passes but two: the 250-500 Hz slope, which the atlas fails at
+/// 9.24 dB/octave (band 3-9), as the fine atlas of the same anatomy fails it: its suspension
+/// resonates near 300 Hz (docs/mechanics.md, "What the notch at 315 Hz is"); and, since the
+/// cochlear load is Aibara et al.'s mean (2026-12-01), the drop from the maximum to 4 kHz,
+/// 7.88 dB against 8-25 (the load flattens the maximum). Not evidence either way: the test
+/// pins where the atlas stands on those gates, which the evidence judges (docs/mechanics.md,
+/// "Parameters").
 #[test]
-fn the_atlas_transfer_function_fails_only_the_slope_gate_as_its_fine_lattice_does() {
+fn the_atlas_transfer_function_fails_only_the_slope_and_the_drop_gates() {
     let atlas = default_atlas().unwrap();
     let system = MechanicalSystem::new(&atlas, atlas.nodes()).unwrap();
     let tf =
@@ -47,14 +48,19 @@ fn the_atlas_transfer_function_fails_only_the_slope_gate_as_its_fine_lattice_doe
         .filter(|g| !g.name.starts_with("UDSP"))
         .map(|g| (g.name.as_str(), g.value))
         .collect();
-    assert_eq!(tf_failures.len(), 1, "{tf_failures:?}");
+    assert_eq!(tf_failures.len(), 2, "{tf_failures:?}");
     assert!(
-        tf_failures[0].0.starts_with("slope 250-500 Hz") && (9.0..=9.3).contains(&tf_failures[0].1),
+        tf_failures[0].0.starts_with("slope 250-500 Hz") && (9.0..=9.5).contains(&tf_failures[0].1),
         "{tf_failures:?}"
     );
-    // stiffness-controlled at 250 Hz: velocity leads the pressure
+    assert!(
+        tf_failures[1].0.starts_with("drop from max") && (7.5..8.0).contains(&tf_failures[1].1),
+        "{tf_failures:?}"
+    );
+    // stiffness-controlled at 250 Hz: velocity leads the pressure (by less than a pure
+    // stiffness's 90°: the cochlear load is resistive)
     let phase = tf.at(250.0).unwrap().phase_deg;
-    assert!((45.0..=100.0).contains(&phase), "{phase}");
+    assert!((20.0..=90.0).contains(&phase), "{phase}");
 }
 
 /// The default atlas's malleus and incus weigh what weighed ossicles do: Todd & Creighton 2013
@@ -129,7 +135,8 @@ fn a_rigidly_moved_atlas_has_identical_mechanics() {
 /// at 14 GPa bends (measured 2026-11-28: |H_V| within 0.35 dB, phase within 4.8°, umbo
 /// velocity 0.26 dB, all largest at 8 kHz; umbo displacement 1.0-2.0 % smaller at the gate
 /// pressures; the same atlas with bone 100 times stiffer moves as much; docs/mechanics.md,
-/// "The package check with rigid ossicles").
+/// "The package check with rigid ossicles"). With the cochlear load at Aibara et al.'s mean
+/// (2026-12-01) the umbo velocity at 8 kHz moves by 0.43 dB, so its bound is the magnitude's.
 #[test]
 fn rigid_ossicles_answer_within_the_bones_own_flexibility() {
     let atlas = default_atlas().unwrap();
@@ -153,7 +160,7 @@ fn rigid_ossicles_answer_within_the_bones_own_flexibility() {
             a.frequency_hz
         );
         assert!(
-            db.abs() < 0.5 && phase.abs() < 6.0 && umbo.abs() < 0.4,
+            db.abs() < 0.5 && phase.abs() < 6.0 && umbo.abs() < 0.5,
             "{a:?} vs {b:?}"
         );
     }

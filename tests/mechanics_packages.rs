@@ -51,9 +51,12 @@ fn full_udsp(atlas: &otoatlas::atlas::Atlas) -> StaticCurve {
 
 /// `run`'s verdict (rigid ossicles, the reduced sweep) against the verdict of the full model
 /// (elastic ossicles, direct solves) of the package against the full model of the atlas:
-/// every gate passes or fails alike, the values within 0.25 dB, 2.5 degrees and 0.03 in the
-/// ratios (measured: BENCHMARKS.md, "The package check with rigid ossicles"). Returns the
-/// largest differences (dB, degrees, ratio).
+/// the values within 0.25 dB, 2.5 degrees and 0.03 in the ratios (measured: BENCHMARKS.md,
+/// "The package check with rigid ossicles"), and every gate passes or fails alike, but where
+/// the full model's value lies within that tolerance of the band's edge, where the two models
+/// may fall on either side (sample case-002 at 500 Hz: −2.99 dB full, −3.07 dB rigid, with the
+/// cochlear load at Aibara et al.'s mean). Returns the largest differences (dB, degrees,
+/// ratio).
 fn same_verdict_as_full(case: &str, mechanics: &serde_json::Value, full: &Verdict) -> [f64; 3] {
     let gates = mechanics["verdict"]["gates"].as_array().unwrap();
     assert_eq!(gates.len(), full.gates.len(), "{case}");
@@ -77,13 +80,19 @@ fn same_verdict_as_full(case: &str, mechanics: &serde_json::Value, full: &Verdic
             gate.name,
             gate.value
         );
-        assert_eq!(
-            run["passed"].as_bool().unwrap(),
-            gate.passed,
-            "{case} {}: full model {} vs {run}",
-            gate.name,
-            gate.value
-        );
+        let at_an_edge =
+            (gate.value - gate.low).abs() < tolerance || (gate.value - gate.high).abs() < tolerance;
+        if run["passed"].as_bool().unwrap() != gate.passed {
+            assert!(
+                at_an_edge,
+                "{case} {}: full model {} vs {run}",
+                gate.name, gate.value
+            );
+            println!(
+                "{case} {}: full model {:.3}, rigid {value:.3}, on either side of the band's edge",
+                gate.name, gate.value
+            );
+        }
     }
     worst
 }

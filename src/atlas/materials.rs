@@ -158,19 +158,17 @@ pub const RAYLEIGH: Rayleigh = Rayleigh {
     beta_s: 1.0e-4,
 };
 
-/// Cochlear input impedance Z_c (Pa·s/m³): 1.0e10, about half the mean of \[A01\] (2.11e10).
-/// Set with the first atlas's calibrations (commit 51522bb) and later labelled "the low end of
-/// about 1e10 to 2e10", which no source in hand supports: a chosen value, not literature. At
-/// \[A01\]'s mean the default atlas fails a second gate and Chien et al.'s phase
-/// (docs/mechanics.md, "Parameters").
-pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 1.0e10;
+/// Cochlear input impedance Z_c (Pa·s/m³): 2.11e10, the mean of \[A01\]'s 12 temporal bones
+/// (literature, not calibrated). Until 2026-12-01 the atlas had 1.0e10, set with the first
+/// atlas's calibrations (commit 51522bb) and then listed as chosen; docs/mechanics.md,
+/// "Parameters", gives what the change moved.
+pub const COCHLEAR_IMPEDANCE_PA_S_PER_M3: f64 = 2.11e10;
 
 /// Where the damping values come from (stored with them in the atlas file).
-pub const DAMPING_SOURCE: &str = "Rayleigh damping from the literature, not calibrated \
-     (docs/mechanics.md): beta 1.0e-4 s, the eardrum's value in Wang, Gan et al. 2016, Biomech \
-     Model Mechanobiol 15:1263, Table 2, and alpha 0; cochlear impedance 1e10 Pa s/m^3, CHOSEN \
-     with the first atlas's calibrations: about half the mean of 12 temporal bones in Aibara \
-     et al. 2001, Hear Res 152:100 (2.11e10)";
+pub const DAMPING_SOURCE: &str = "literature, not calibrated (docs/mechanics.md): Rayleigh \
+     beta 1.0e-4 s, the eardrum's value in Wang, Gan et al. 2016, Biomech Model Mechanobiol \
+     15:1263, Table 2, and alpha 0; cochlear impedance 2.11e10 Pa s/m^3, the mean of 12 \
+     temporal bones in Aibara et al. 2001, Hear Res 152:100";
 
 /// Total stiffness of the stapedial annular ligament (N/m), shared by isotropic springs on
 /// the footplate rim nodes: 120 N/m, the AFM value of \[Kw15\] (measured at one point of the
