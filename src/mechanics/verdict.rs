@@ -191,7 +191,7 @@ pub fn relative_verdict(
         _ => f64::NAN,
     };
     gates.push(Gate::band(
-        "centre of the band within 1 dB of the maximum / the atlas's",
+        format!("centre of the band within {MAXIMUM_BAND_DB} dB of the maximum / the atlas's"),
         ratio,
         RELATIVE_PEAK,
         "",
