@@ -150,6 +150,16 @@ fn validate_logs_its_progress_when_stderr_is_not_a_terminal() {
         .filter(|l| l.trim_end().ends_with(" um") && !l.trim_start().starts_with("0 Pa"))
         .count();
     assert!(frequencies > 10 && pressures > 2, "{stdout}");
+    // the flat top's band, whose centre a package's consistency gate compares: the atlas's
+    // maximum (707 Hz) lies within it
+    let band = stdout
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("within 1 dB of it: "))
+        .unwrap_or_else(|| panic!("no band line in {stdout}"));
+    let (low, rest) = band.split_once('-').unwrap();
+    let high = rest.split_once(" Hz").unwrap().0;
+    let (low, high): (f64, f64) = (low.parse().unwrap(), high.parse().unwrap());
+    assert!(low < 707.0 && 707.0 < high, "{band}");
     // the evidence, one line per source, the fitted one marked as such
     let evidence: Vec<&str> = stdout
         .lines()

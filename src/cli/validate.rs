@@ -11,6 +11,7 @@ use super::Report;
 use super::package_arg::{open_package, source_atlas};
 use crate::Error;
 use crate::atlas::{Anatomy, load_atlas};
+use crate::mechanics::verdict::MAXIMUM_BAND_DB;
 use crate::mechanics::{
     Condition, ConditionChange, Drive, DrumConvergence, DrumStudy, Ossicles, ValidationOptions,
     validate_atlas, validate_package,
@@ -178,6 +179,17 @@ pub fn run(args: &ValidateArgs, progress: &dyn Reporter) -> Result<Report, Error
     }
     if let Some((f, h)) = m.transfer_function.peak() {
         let _ = writeln!(text, "  maximum {h:.2} um/s/Pa at {f:.0} Hz");
+    }
+    let tf = &m.transfer_function;
+    if let (Some((low, high)), Some(centre)) = (
+        tf.maximum_band(MAXIMUM_BAND_DB),
+        tf.maximum_band_centre(MAXIMUM_BAND_DB),
+    ) {
+        let _ = writeln!(
+            text,
+            "  within {MAXIMUM_BAND_DB} dB of it: {low:.0}-{high:.0} Hz, centre {centre:.0} Hz \
+             (what a package's consistency gate compares)"
+        );
     }
     let _ = writeln!(
         text,

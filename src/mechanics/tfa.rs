@@ -136,14 +136,10 @@ impl TransferFunction {
         Some((xv.exp(), 10f64.powf(db / 20.0)))
     }
 
-    /// Centre (Hz, geometric) of the band around the maximum where |H_V| stays within
-    /// `within_db` of it, each edge interpolated linearly in (log f, dB) between the samples
-    /// that straddle it, or the first or last frequency where the curve does not fall that far.
-    ///
-    /// Where the frequency of a maximum can jump by a whole sample spacing for a fraction of
-    /// a dB (a flat top, two samples nearly level), this moves with the curve: it is what the
-    /// consistency gate compares (`verdict::relative_verdict`).
-    pub fn maximum_band_centre(&self, within_db: f64) -> Option<f64> {
+    /// Edges (Hz) of the band around the maximum where |H_V| stays within `within_db` of it,
+    /// each interpolated linearly in (log f, dB) between the samples that straddle it, or the
+    /// first or last frequency where the curve does not fall that far.
+    pub fn maximum_band(&self, within_db: f64) -> Option<(f64, f64)> {
         let p = &self.points;
         let (i, top) = p
             .iter()
@@ -170,10 +166,19 @@ impl TransferFunction {
         while hi + 1 < p.len() && p[hi + 1].db() >= level {
             hi += 1;
         }
-        let low = edge(&p[lo], lo.checked_sub(1).map(|k| &p[k]));
-        let high = edge(&p[hi], p.get(hi + 1));
-        let centre = (0.5 * (low + high)).exp();
-        centre.is_finite().then_some(centre)
+        let low = edge(&p[lo], lo.checked_sub(1).map(|k| &p[k])).exp();
+        let high = edge(&p[hi], p.get(hi + 1)).exp();
+        (low.is_finite() && high.is_finite()).then_some((low, high))
+    }
+
+    /// Centre (Hz, geometric) of [`maximum_band`](Self::maximum_band).
+    ///
+    /// Where the frequency of a maximum can jump by a whole sample spacing for a fraction of
+    /// a dB (a flat top, two samples nearly level), this moves with the curve: it is what the
+    /// consistency gate compares (`verdict::relative_verdict`).
+    pub fn maximum_band_centre(&self, within_db: f64) -> Option<f64> {
+        self.maximum_band(within_db)
+            .map(|(low, high)| (low * high).sqrt())
     }
 }
 
