@@ -45,7 +45,7 @@ pub const ASYMMETRY: (f64, f64) = (1.45, 2.07);
 /// displacement ratio.
 pub const RELATIVE_DB: f64 = 3.0;
 pub const MAXIMUM_BAND_DB: f64 = 1.0;
-pub const RELATIVE_PEAK: (f64, f64) = (0.8, 1.25);
+pub const RELATIVE_BAND_CENTRE: (f64, f64) = (0.8, 1.25);
 pub const RELATIVE_PHASE_DEG: f64 = 45.0;
 pub const PHASE_UP_TO_HZ: f64 = 4000.0;
 pub const RELATIVE_UMBO: (f64, f64) = (0.75, 1.25);
@@ -193,7 +193,7 @@ pub fn relative_verdict(
     gates.push(Gate::band(
         format!("centre of the band within {MAXIMUM_BAND_DB} dB of the maximum / the atlas's"),
         ratio,
-        RELATIVE_PEAK,
+        RELATIVE_BAND_CENTRE,
         "",
     ));
     if reference_udsp.points.is_empty() {
