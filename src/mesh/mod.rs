@@ -9,6 +9,7 @@ pub mod quality;
 pub mod shapes;
 pub mod spatial;
 pub mod surface;
+pub mod surface_repair;
 pub mod tet;
 pub mod topology;
 pub mod union;

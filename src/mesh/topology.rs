@@ -36,13 +36,13 @@ impl SurfaceTopology {
 }
 
 /// Smallest-root union-find, deterministic.
-struct UnionFind(Vec<u32>);
+pub(crate) struct UnionFind(Vec<u32>);
 
 impl UnionFind {
-    fn new(n: usize) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         Self((0..n as u32).collect())
     }
-    fn find(&mut self, mut i: u32) -> u32 {
+    pub(crate) fn find(&mut self, mut i: u32) -> u32 {
         while self.0[i as usize] != i {
             let p = self.0[i as usize];
             self.0[i as usize] = self.0[p as usize];
@@ -50,7 +50,7 @@ impl UnionFind {
         }
         i
     }
-    fn union(&mut self, a: u32, b: u32) {
+    pub(crate) fn union(&mut self, a: u32, b: u32) {
         let (ra, rb) = (self.find(a), self.find(b));
         let (lo, hi) = (ra.min(rb), ra.max(rb));
         self.0[hi as usize] = lo;

@@ -22,6 +22,7 @@ use crate::ear::{
 };
 use crate::mesh::TriMesh;
 use crate::mesh::io::{SURFACE_EXTENSIONS, read_surface, surface_extension, surface_files};
+use crate::mesh::surface_repair::{RepairOptions, repair_closed_surface};
 
 /// Names a fused chain surface may have.
 const FUSED_STEMS: [&str; 2] = ["chain", "ossicles"];
@@ -73,8 +74,11 @@ pub struct ChainAnatomy {
     /// How the landmarks and side were proposed, when the folder had no landmark file.
     pub proposed: Option<LandmarksProposed>,
     /// How the folder was read, for the user: a surface taken by a name other than the
-    /// part's own, a surface turned outward, an eardrum surface not used.
+    /// part's own, a surface mended, an eardrum surface not used.
     pub notes: Vec<String>,
+    /// What was mended in the surfaces as read, each as `FILE NAME: change` (no path: it goes
+    /// into truth.json).
+    pub mended: Vec<String>,
 }
 
 /// Landmarks and side for a chain without a landmark file, from the phantom's atlas anatomy.
@@ -161,26 +165,34 @@ fn named_files(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>, ChainError> {
     Ok(named)
 }
 
-/// Reads one closed surface; one whose triangles all face inward (a negative enclosed
-/// volume) is turned outward, with a note.
-fn read_part(path: &Path, notes: &mut Vec<String>) -> Result<TriMesh, ChainError> {
-    let mut mesh = read_surface(path).map_err(|e| ChainError::Read(e.to_string()))?;
-    let volume = mesh.signed_volume();
-    if volume < 0.0 {
-        mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
-        notes.push(format!(
-            "{}: its triangles face inward (enclosed volume {volume:.3} mm³); read turned outward",
-            path.display()
-        ));
+/// Reads one closed surface, mended where another tool left it unfit for inside tests
+/// (`mesh::surface_repair`: faces turned, specks dropped, small holes closed), each change a
+/// note; a surface that cannot be mended is refused.
+fn read_part(
+    path: &Path,
+    notes: &mut Vec<String>,
+    mended: &mut Vec<String>,
+) -> Result<TriMesh, ChainError> {
+    let mesh = read_surface(path).map_err(|e| ChainError::Read(e.to_string()))?;
+    let refused = |what: String| ChainError::Surface {
+        path: path.to_path_buf(),
+        what,
+    };
+    let (mesh, repair) = repair_closed_surface(&mesh, RepairOptions::default())
+        .map_err(|e| refused(e.to_string()))?;
+    let file = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    for change in repair.describe() {
+        notes.push(format!("{}: {change}", path.display()));
+        mended.push(format!("{file}: {change}"));
     }
-    if mesh.triangles.is_empty() || mesh.signed_volume() <= 0.0 {
-        return Err(ChainError::Surface {
-            path: path.to_path_buf(),
-            what: format!(
-                "expected a closed surface (enclosed volume {:.3} mm³)",
-                mesh.signed_volume()
-            ),
-        });
+    let volume = mesh.signed_volume();
+    if volume.is_nan() || volume <= 0.0 {
+        return Err(refused(format!(
+            "expected a closed surface (enclosed volume {volume:.3} mm³)"
+        )));
     }
     Ok(mesh)
 }
@@ -213,6 +225,7 @@ impl ChainAnatomy {
             .collect();
         let fused = FUSED_STEMS.iter().find_map(|s| file(s));
         let mut notes = Vec::new();
+        let mut mended = Vec::new();
         let chosen: Vec<(PartKind, PathBuf)> = if found.len() == 3 {
             ossicles
                 .into_iter()
@@ -272,7 +285,7 @@ impl ChainAnatomy {
             {
                 notes.push(format!("{}: read as the {}", path.display(), kind.name()));
             }
-            parts.push((kind, read_part(&path, &mut notes)?));
+            parts.push((kind, read_part(&path, &mut notes, &mut mended)?));
         }
         let span_mm = span_mm(parts.iter().flat_map(|(_, m)| &m.vertices));
         if !is_chain_span(span_mm) {
@@ -323,6 +336,7 @@ impl ChainAnatomy {
             articulation: None,
             proposed,
             notes,
+            mended,
         })
     }
 
@@ -413,6 +427,7 @@ impl ChainAnatomy {
             articulation: self.articulation.clone(),
             proposed: self.proposed,
             notes: self.notes.clone(),
+            mended: self.mended.clone(),
         }
     }
 }
@@ -491,7 +506,7 @@ mod tests {
             "{notes}"
         );
         assert!(
-            notes.contains("stapes.obj: its triangles face inward"),
+            notes.contains("stapes.obj: triangles facing inward"),
             "{notes}"
         );
         assert!(notes.contains("Tympanic Membrane.obj: not used"), "{notes}");
@@ -552,5 +567,67 @@ mod tests {
                 "{err}"
             );
         }
+    }
+
+    /// A fused chain exported with a fifth of its triangles flipped and a speck of
+    /// segmentation noise beside it is read as the clean chain, each change a note and a
+    /// record for truth.json (by file name, not path); one with
+    /// a cap cut away is refused with the opening's size, not rendered around a hole.
+    #[test]
+    fn a_defective_chain_export_is_mended_or_refused() {
+        let [malleus, incus, stapes] = balls();
+        let clean = TriMesh::concatenated(&[&malleus, &incus, &stapes]);
+        let read = |mesh: &TriMesh| {
+            let tmp = tempfile::tempdir().unwrap();
+            obj::write_obj(&tmp.path().join("Ossicular chain.obj"), mesh).unwrap();
+            write_landmarks(tmp.path());
+            ChainAnatomy::load(tmp.path())
+        };
+        let mut flipped = clean.clone();
+        flipped
+            .triangles
+            .iter_mut()
+            .step_by(5)
+            .for_each(|t| t.swap(0, 2));
+        let speck = icosphere(Point3::new(6.0, 1.0, 0.0), 0.1, 1);
+        let defective = TriMesh::concatenated(&[&flipped, &speck]);
+        let chain = read(&defective).unwrap();
+        let [(kind, mended)] = chain.parts.as_slice() else {
+            panic!("{} parts", chain.parts.len());
+        };
+        assert_eq!(*kind, PartKind::Chain);
+        assert_eq!(mended.triangles.len(), clean.triangles.len());
+        assert!((mended.signed_volume() - clean.signed_volume()).abs() < 1e-9);
+        let notes = chain.notes.join("\n");
+        assert!(
+            notes.contains(&format!(
+                "{} triangles turned to agree with their neighbours",
+                clean.triangles.len().div_ceil(5)
+            )) && notes.contains(&format!(
+                "1 separate piece(s) of {:.4} mm³ dropped as specks",
+                speck.signed_volume()
+            )),
+            "{notes}"
+        );
+        assert_eq!(chain.mended.len(), 2, "{:?}", chain.mended);
+        assert!(
+            chain
+                .mended
+                .iter()
+                .all(|m| m.starts_with("Ossicular chain.obj: ")),
+            "{:?}",
+            chain.mended
+        );
+        let mut cut = clean.clone();
+        cut.triangles
+            .retain(|t| t.iter().all(|&v| clean.vertices[v as usize].z < 0.3));
+        let err = read(&cut).unwrap_err().to_string();
+        assert!(
+            err.contains("Ossicular chain.obj")
+                && err.contains("an opening")
+                && err.contains("mm around")
+                && err.contains("expected a closed surface"),
+            "{err}"
+        );
     }
 }

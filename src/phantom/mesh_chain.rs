@@ -116,6 +116,7 @@ impl MeshChain {
             variation: chain.variation.clone(),
             articulation: chain.articulation.clone(),
             landmarks_proposed: chain.proposed,
+            mended: chain.mended.clone(),
         };
         Ok(MeshChain {
             atlas: plain,
@@ -308,6 +309,7 @@ mod tests {
                 articulation: None,
                 proposed: None,
                 notes: Vec::new(),
+                mended: Vec::new(),
             };
             let placed = MeshChain::place(&chain, atlas.clone(), false);
             if factor == 1.0 {

@@ -241,6 +241,10 @@ pub struct ChainPlacement {
     /// absent when they were read from one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub landmarks_proposed: Option<LandmarksProposed>,
+    /// What was mended in the chain's surfaces as read (`FILE: change`: faces turned, specks
+    /// dropped, holes closed; docs/phantom.md); absent when they were used as they came.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub mended: Vec<String>,
 }
 
 #[cfg(test)]
