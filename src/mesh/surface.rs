@@ -68,6 +68,18 @@ impl TriMesh {
         mesh
     }
 
+    /// The surface of the triangles whose `keep` is true, with only the vertices they use.
+    pub fn kept(&self, keep: &[bool]) -> TriMesh {
+        let kept: Vec<[u32; 3]> = self
+            .triangles
+            .iter()
+            .zip(keep)
+            .filter(|(_, k)| **k)
+            .map(|(t, _)| *t)
+            .collect();
+        TriMesh::compacted(&kept, &self.vertices)
+    }
+
     /// The surfaces side by side in one mesh (vertices and triangles appended in order; faces
     /// where they touch or overlap are kept: `mesh::union` drops those).
     pub fn concatenated(meshes: &[&TriMesh]) -> TriMesh {

@@ -174,14 +174,7 @@ pub fn repair_closed_surface(
             report.turned_pieces.push(*v);
         }
     }
-    let kept: Vec<[u32; 3]> = surface
-        .triangles
-        .iter()
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|(t, _)| *t)
-        .collect();
-    let mut surface = TriMesh::compacted(&kept, &surface.vertices);
+    let mut surface = surface.kept(&keep);
     close_holes(&mut surface, options.max_hole_perimeter_mm, &mut report)?;
     if report.is_empty() {
         // as it came, vertex order too

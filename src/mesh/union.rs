@@ -101,14 +101,7 @@ pub fn outer_surface(parts: &[&TriMesh], role: &'static str) -> Result<TriMesh, 
                 *k &= *side == Side::Outside;
             }
         }
-        let kept: Vec<[u32; 3]> = part
-            .triangles
-            .iter()
-            .zip(&keep)
-            .filter(|(_, k)| **k)
-            .map(|(t, _)| *t)
-            .collect();
-        pieces.push(TriMesh::compacted(&kept, &part.vertices));
+        pieces.push(part.kept(&keep));
     }
     Ok(TriMesh::concatenated(&pieces.iter().collect::<Vec<_>>()))
 }
