@@ -44,11 +44,15 @@ impl TriMesh {
     /// Signed enclosed volume (positive for a closed, outward-oriented surface).
     pub fn signed_volume(&self) -> f64 {
         (0..self.triangles.len())
-            .map(|t| {
-                let [a, b, c] = self.corners(t);
-                a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
-            })
+            .map(|t| self.origin_tetra_volume(t))
             .sum()
+    }
+
+    /// Signed volume of the tetrahedron from the origin to triangle `t`: its share of the
+    /// enclosed volume.
+    pub fn origin_tetra_volume(&self, t: usize) -> f64 {
+        let [a, b, c] = self.corners(t);
+        a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
     }
 
     /// The surface of `triangles` over a larger node array, with only the nodes they use

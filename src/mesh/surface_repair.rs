@@ -160,7 +160,7 @@ pub fn repair_closed_surface(
     let pieces = pieces(&surface);
     let volumes: Vec<f64> = pieces
         .iter()
-        .map(|piece| piece.iter().map(|&t| tetra_volume(&surface, t)).sum())
+        .map(|piece| piece.iter().map(|&t| surface.origin_tetra_volume(t)).sum())
         .collect();
     let largest = volumes.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     report.largest_piece_mm3 = largest;
@@ -305,12 +305,6 @@ fn pieces(mesh: &TriMesh) -> Vec<Vec<usize>> {
         out[k].push(t);
     }
     out
-}
-
-/// The signed volume of the tetrahedron from the origin to triangle `t`.
-fn tetra_volume(mesh: &TriMesh, t: usize) -> f64 {
-    let [a, b, c] = mesh.corners(t);
-    a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
 }
 
 /// Closes each hole up to `max_perimeter_mm` around by a fan about its corners' centroid.
